@@ -1,0 +1,1 @@
+"""mjx-peg: compliant peg-in-hole insertion learned with MuJoCo, MJX and Brax PPO."""

@@ -1,0 +1,10 @@
+"""Shared test set-up: headless rendering, a persistent JAX compilation cache, float64 off by default."""
+
+import os
+import pathlib
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+os.environ.setdefault("JAX_PLATFORMS", "cpu")
+_CACHE = pathlib.Path(__file__).resolve().parent.parent / ".jax_cache"
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
