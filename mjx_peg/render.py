@@ -1,0 +1,68 @@
+"""Headless rendering helpers: an RGB frame from a model/data and a camera, and a PNG writer.
+
+Without a display, MUJOCO_GL defaults to `egl` here; it is read once, when mujoco is first
+imported, so set it yourself before any `import mujoco` to choose another backend (osmesa).
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+if "MUJOCO_GL" not in os.environ and not (
+    os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+):
+    os.environ["MUJOCO_GL"] = "egl"
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def render_rgb(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    camera: str | int | mujoco.MjvCamera = "birdseye",
+    width: int = 640,
+    height: int = 480,
+) -> np.ndarray:
+    """(height, width, 3) uint8 RGB image of `data` seen from `camera` (name, id or MjvCamera).
+
+    The frame must fit the model's offscreen buffer (<visual><global offwidth/offheight>,
+    1280 x 960 in the mjx_peg scenes); the renderer is closed before returning.
+    """
+    width, height = int(width), int(height)
+    max_w, max_h = int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
+    if not (0 < width <= max_w and 0 < height <= max_h):
+        raise ValueError(
+            f"image size {width}x{height} must be within the offscreen buffer {max_w}x{max_h}"
+        )
+    if isinstance(camera, str) and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera) < 0:
+        names = [model.camera(i).name for i in range(model.ncam)]
+        raise ValueError(
+            f"unknown camera {camera!r}: valid cameras are {', '.join(names) or 'none'}"
+        )
+    with mujoco.Renderer(model, height, width) as renderer:
+        renderer.update_scene(data, camera=camera)
+        return np.array(renderer.render(), dtype=np.uint8)
+
+
+def save_png(path: str | os.PathLike, rgb: np.ndarray) -> pathlib.Path:
+    """Write an (H, W, 3) uint8 image as PNG (parent folders created); returns the path."""
+    from matplotlib import image  # no pyplot: leaves the caller's backend alone
+
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image.imsave(path, np.asarray(rgb, dtype=np.uint8))
+    return path
+
+
+def write_png(
+    path: str | os.PathLike,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    camera: str | int | mujoco.MjvCamera = "birdseye",
+    width: int = 640,
+    height: int = 480,
+) -> pathlib.Path:
+    """Render `data` from `camera` and write it to `path` as PNG; returns the path."""
+    return save_png(path, render_rgb(model, data, camera, width, height))

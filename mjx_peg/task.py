@@ -1,0 +1,378 @@
+"""The insertion task (paper section 5.2): `TaskConfig` randomization -> `TrialSpec` arrays.
+
+Per trial (CONVENTIONS.md "Trial quantities"): a shape and size, the board (true hole centre
+uniform in area over an annular sector of the workspace, yaw uniform), the peg-board friction, a
+localization error (dx, dy, dyaw) and a grasp error (dz, tilt_x, tilt_y), each uniform within
++- its range, and a start: the nominal tip (`tcp`) above the estimated hole, with a random
+horizontal offset, height and small tilt, and the arm configuration reaching it (analytic IK,
+the branch nearest `kinematics.HOME_Q`). Trials whose start or goal configuration is out of
+reach or near-singular are drawn again (rejection sampling).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from mjx_peg import kinematics, scene
+
+# task.py imports scene.py, never the reverse; the scene owns the geometry constants.
+SHAPES: tuple[str, ...] = tuple(scene.SHAPES)
+HOLE_DEPTH: float = float(scene.HOLE_DEPTH)  # m, board top above the table
+PEG_LENGTH: float = float(scene.PEG_LENGTH)  # m, site `tcp` along the flange z
+
+GOAL_HEIGHT = 0.0  # m: the goal configuration puts the nominal tip at the table top
+MAX_REJECTION_FACTOR = 1000  # sample_trials gives up after drawing this many candidates per trial
+
+
+def _number(name: str, value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"TaskConfig.{name} must be a number, got {value!r}") from None
+
+
+def _range(name: str, value, lo_min: float = -math.inf, positive: bool = False) -> tuple:
+    """Validate a (lo, hi) range of finite floats with lo_min <= lo <= hi; return it as a tuple."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"TaskConfig.{name} must be a (low, high) pair, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise ValueError(f"TaskConfig.{name} must be finite with low <= high, got ({lo}, {hi})")
+    if lo < lo_min or (positive and lo <= 0.0):
+        bound = f"> {lo_min}" if positive else f">= {lo_min}"
+        raise ValueError(f"TaskConfig.{name} low end must be {bound}, got ({lo}, {hi})")
+    return lo, hi
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskConfig:
+    """How trials are randomized. SI units: m, rad, s. Ranges are (low, high)."""
+
+    shapes: tuple[str, ...] = ("circle", "square")  # the paper trains on these
+    sizes: tuple[float, ...] = (0.05,)  # characteristic size S = D = L (m)
+    friction_range: tuple[float, float] = (0.2, 0.9)  # peg-board friction, uniform
+    linear_error: float = 0.004  # +- range of localization x, y and grasp z errors (m)
+    angular_error: float = math.radians(6.0)  # +- range of localization yaw, grasp tilts (rad)
+    board_yaw_range: tuple[float, float] = (0.0, math.pi / 2)  # board yaw about z (rad)
+    workspace_radius: tuple[float, float] = (0.35, 0.65)  # hole centre distance from base (m)
+    workspace_angle: tuple[float, float] = (-math.pi / 3, math.pi / 3)  # about +x (rad)
+    start_height: tuple[float, float] = (0.04, 0.08)  # nominal tip above the board top (m)
+    start_xy_jitter: float = 0.01  # start tip offset from the estimated hole, within a disc (m)
+    start_tilt_jitter: float = math.radians(5.0)  # start orientation from tool-down (rad)
+    time_limit_s: float = 60.0  # the paper's evaluation limit
+    # Bound on kinematics.condition_number(q, PEG_LENGTH, "full") (6x6 tcp Jacobian, linear
+    # rows in m, angular in rad) of the start and goal configurations. The default workspace
+    # sits at 7-12; the bound rejects the folded elbow near the base and the stretched arm.
+    max_condition: float = 20.0
+
+    def __post_init__(self):
+        shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
+        if not shapes:
+            raise ValueError(f"TaskConfig.shapes is empty: choose from {', '.join(SHAPES)}")
+        for shape in shapes:
+            if shape not in SHAPES:
+                raise ValueError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+        object.__setattr__(self, "shapes", shapes)
+        try:
+            sizes = tuple(float(s) for s in np.atleast_1d(self.sizes))
+        except (TypeError, ValueError):
+            raise ValueError(f"TaskConfig.sizes must be numbers (m), got {self.sizes!r}") from None
+        if not sizes or not all(math.isfinite(s) and s > 0.0 for s in sizes):
+            raise ValueError(f"TaskConfig.sizes must be positive numbers (m), got {sizes}")
+        object.__setattr__(self, "sizes", sizes)
+        for name, upper in (
+            ("linear_error", 0.05),
+            ("angular_error", math.pi / 4),
+            ("start_xy_jitter", 0.1),
+            ("start_tilt_jitter", math.pi / 4),
+        ):
+            value = _number(name, getattr(self, name))
+            if not (math.isfinite(value) and 0.0 <= value <= upper):
+                raise ValueError(f"TaskConfig.{name} must be in [0, {upper:g}], got {value!r}")
+            object.__setattr__(self, name, value)
+        ranges = {
+            "friction_range": dict(positive=True),
+            "board_yaw_range": dict(lo_min=-math.pi),
+            "workspace_radius": dict(positive=True),
+            "workspace_angle": dict(lo_min=-math.pi),
+            "start_height": dict(positive=True),
+        }
+        for name, kwargs in ranges.items():
+            object.__setattr__(self, name, _range(name, getattr(self, name), **kwargs))
+        if self.workspace_angle[1] > math.pi or self.board_yaw_range[1] > math.pi:
+            raise ValueError("TaskConfig.workspace_angle and board_yaw_range must lie in [-pi, pi]")
+        for name, lower in (("time_limit_s", 0.0), ("max_condition", 1.0)):
+            value = _number(name, getattr(self, name))
+            if not (math.isfinite(value) and value > lower):
+                raise ValueError(
+                    f"TaskConfig.{name} must be a finite number > {lower:g}, got {value!r}"
+                )
+            object.__setattr__(self, name, value)
+        self._check_workspace()
+
+    def _check_workspace(self) -> None:
+        """ValueError unless the arm reaches the sector, tool down, away from singularities."""
+        heights = (
+            GOAL_HEIGHT,
+            HOLE_DEPTH + self.start_height[0],
+            HOLE_DEPTH + self.start_height[1],
+        )
+        outer = self.workspace_radius[1] + self.linear_error + self.start_xy_jitter
+        reach = min(kinematics.max_tool_down_radius(h, PEG_LENGTH) for h in heights)
+        if outer > reach:
+            raise ValueError(
+                f"TaskConfig.workspace_radius outer edge {outer:.3f} m (with errors and jitter) is "
+                f"beyond the UR5e's tool-down reach of {reach:.3f} m at the board"
+            )
+        radius = np.linspace(*self.workspace_radius, 5)
+        angle = np.linspace(*self.workspace_angle, 7)
+        yaw = np.linspace(self.board_yaw_range[0], self.board_yaw_range[1], 3)
+        r, a, h, y = (g.ravel() for g in np.meshgrid(radius, angle, heights, yaw, indexing="ij"))
+        pos = np.stack([r * np.cos(a), r * np.sin(a), h], axis=-1)
+        q, found = kinematics.ik_tcp_closest(pos, kinematics.tool_down_rotation(y), PEG_LENGTH)
+        cond = np.where(found, kinematics.condition_number(np.nan_to_num(q), PEG_LENGTH), np.inf)
+        where = "radius {:.3f} m, angle {:.1f} deg, tip height {:.3f} m"
+        if not np.all(found):
+            i = int(np.argmin(found))
+            raise ValueError(
+                "TaskConfig workspace is out of the UR5e's reach with the tool down at "
+                + where.format(r[i], math.degrees(a[i]), h[i])
+            )
+        worst = int(np.argmax(cond))
+        if cond[worst] > self.max_condition:
+            raise ValueError(
+                "TaskConfig workspace is near-singular at "
+                + where.format(r[worst], math.degrees(a[worst]), h[worst])
+                + f": condition number {cond[worst]:.3g} > max_condition {self.max_condition:g}"
+            )
+
+    @classmethod
+    def paper(cls) -> TaskConfig:
+        """The paper's training setup: circle and square, 50 mm, errors up to 8 mm and 12 deg."""
+        return cls(
+            shapes=("circle", "square"),
+            sizes=(0.05,),
+            linear_error=0.008,
+            angular_error=math.radians(12.0),
+        )
+
+    def replace(self, **changes) -> TaskConfig:
+        return dataclasses.replace(self, **changes)
+
+
+# name -> (trailing shape, dtype) of every TrialSpec array; leading dim B.
+_SPEC_FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
+    "shape_id": ((), np.int32),
+    "size": ((), np.float64),
+    "board_pos": ((2,), np.float64),
+    "board_yaw": ((), np.float64),
+    "friction": ((), np.float64),
+    "loc_error": ((3,), np.float64),
+    "grasp_error": ((3,), np.float64),
+    "hole_est_pos": ((2,), np.float64),
+    "hole_est_yaw": ((), np.float64),
+    "tcp0_pos": ((3,), np.float64),
+    "tcp0_rot": ((3, 3), np.float64),
+    "q0": ((6,), np.float64),
+    "linear_range": ((), np.float64),
+    "angular_range": ((), np.float64),
+}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class TrialSpec:
+    """B trials, world frame, SI units (NumPy arrays, leading dim B)."""
+
+    shape_id: np.ndarray  # (B,) int32 index into SHAPES
+    size: np.ndarray  # (B,) characteristic size S (m)
+    board_pos: np.ndarray  # (B, 2) true hole centre x, y
+    board_yaw: np.ndarray  # (B,) true board yaw about z (rad)
+    friction: np.ndarray  # (B,) peg-board friction
+    loc_error: np.ndarray  # (B, 3) localization error (dx, dy, dyaw): estimate - true
+    grasp_error: np.ndarray  # (B, 3) peg in the flange frame: (dz, tilt_x, tilt_y)
+    hole_est_pos: np.ndarray  # (B, 2) estimated hole centre = board_pos + loc_error[:, :2]
+    hole_est_yaw: np.ndarray  # (B,) estimated yaw = board_yaw + loc_error[:, 2]
+    tcp0_pos: np.ndarray  # (B, 3) start position of the nominal tip (site `tcp`)
+    tcp0_rot: np.ndarray  # (B, 3, 3) start orientation of the tcp
+    q0: np.ndarray  # (B, 6) start joint configuration, wrapped to (-pi, pi]
+    linear_range: np.ndarray  # (B,) +- range the linear errors were drawn from (m)
+    angular_range: np.ndarray  # (B,) +- range the angular errors were drawn from (rad)
+
+    def __len__(self) -> int:
+        return int(np.shape(self.shape_id)[0])
+
+    def take(self, indices) -> TrialSpec:
+        """The trials at `indices` (integer array or boolean mask)."""
+        return TrialSpec(**{n: np.asarray(v)[indices] for n, v in self.to_arrays().items()})
+
+    @classmethod
+    def concat(cls, specs: Sequence[TrialSpec]) -> TrialSpec:
+        if not specs:
+            raise ValueError("TrialSpec.concat needs at least one TrialSpec")
+        return cls(**{n: np.concatenate([getattr(s, n) for s in specs]) for n in _SPEC_FIELDS})
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Plain arrays by field name (np.savez-able, loads with allow_pickle=False)."""
+        return {name: getattr(self, name) for name in _SPEC_FIELDS}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> TrialSpec:
+        missing = [name for name in _SPEC_FIELDS if name not in arrays]
+        if missing:
+            raise ValueError(f"TrialSpec arrays lack {', '.join(missing)}")
+        return cls(**{n: np.asarray(arrays[n], dtype=dt) for n, (_, dt) in _SPEC_FIELDS.items()})
+
+    def validate(self) -> TrialSpec:
+        """Raise ValueError (one line) unless every array has its shape, dtype and finite values."""
+        batch = len(self)
+        for name, (trailing, dtype) in _SPEC_FIELDS.items():
+            value = getattr(self, name)
+            if not isinstance(value, np.ndarray):
+                raise ValueError(
+                    f"TrialSpec.{name} must be a NumPy array, got {type(value).__name__}"
+                )
+            if value.shape != (batch, *trailing):
+                raise ValueError(
+                    f"TrialSpec.{name} has shape {value.shape}, expected {(batch, *trailing)}"
+                )
+            if value.dtype != dtype:
+                raise ValueError(
+                    f"TrialSpec.{name} has dtype {value.dtype}, expected {np.dtype(dtype)}"
+                )
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"TrialSpec.{name} has non-finite values")
+        if np.any((self.shape_id < 0) | (self.shape_id >= len(SHAPES))):
+            raise ValueError(f"TrialSpec.shape_id must index SHAPES {SHAPES}")
+        if np.any(self.size <= 0.0):
+            raise ValueError("TrialSpec.size must be positive")
+        rtr = self.tcp0_rot @ np.swapaxes(self.tcp0_rot, -1, -2)
+        if np.any(np.abs(rtr - np.eye(3)) > 1e-6):
+            raise ValueError("TrialSpec.tcp0_rot must hold rotation matrices")
+        return self
+
+
+def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+    """n unfiltered trials (everything but the IK)."""
+    lin, ang = config.linear_error, config.angular_error
+    combo = rng.integers(len(config.shapes) * len(config.sizes), size=n)
+    shape_ids = np.array([SHAPES.index(s) for s in config.shapes], dtype=np.int32)
+    r0, r1 = config.workspace_radius
+    radius = np.sqrt(rng.uniform(r0**2, r1**2, n))  # uniform in area
+    angle = rng.uniform(*config.workspace_angle, n)
+    board_pos = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
+    board_yaw = rng.uniform(*config.board_yaw_range, n)
+    friction = rng.uniform(*config.friction_range, n)
+    loc_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, lin, ang])
+    grasp_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, ang, ang])
+    hole_est_pos = board_pos + loc_error[:, :2]
+    hole_est_yaw = board_yaw + loc_error[:, 2]
+    # Start: tip over the estimated hole, offset uniformly within a disc, tilted by a rotation
+    # vector uniform in the ball of radius start_tilt_jitter (world frame).
+    jitter_r = config.start_xy_jitter * np.sqrt(rng.uniform(0.0, 1.0, n))
+    jitter_a = rng.uniform(-np.pi, np.pi, n)
+    height = HOLE_DEPTH + rng.uniform(*config.start_height, n)
+    tcp0_pos = np.stack(
+        [
+            hole_est_pos[:, 0] + jitter_r * np.cos(jitter_a),
+            hole_est_pos[:, 1] + jitter_r * np.sin(jitter_a),
+            height,
+        ],
+        axis=-1,
+    )
+    direction = rng.normal(size=(n, 3))
+    direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
+    tilt = direction * (config.start_tilt_jitter * np.cbrt(rng.uniform(0.0, 1.0, n)))[:, None]
+    tcp0_rot = kinematics.matrix_from_rotvec(tilt) @ kinematics.tool_down_rotation(hole_est_yaw)
+    return dict(
+        shape_id=shape_ids[combo // len(config.sizes)],
+        size=np.asarray(config.sizes, dtype=np.float64)[combo % len(config.sizes)],
+        board_pos=board_pos,
+        board_yaw=board_yaw,
+        friction=friction,
+        loc_error=loc_error,
+        grasp_error=grasp_error,
+        hole_est_pos=hole_est_pos,
+        hole_est_yaw=hole_est_yaw,
+        tcp0_pos=tcp0_pos,
+        tcp0_rot=tcp0_rot,
+        linear_range=np.full(n, lin),
+        angular_range=np.full(n, ang),
+    )
+
+
+def goal_pose(hole_est_pos: np.ndarray, hole_est_yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nominal goal of the tcp: the estimated hole centre at the table top, tool down, aligned.
+
+    hole_est_pos (..., 2), hole_est_yaw (...,) -> pos (..., 3), rot (..., 3, 3).
+    """
+    hole_est_pos = np.asarray(hole_est_pos, dtype=np.float64)
+    height = np.full(hole_est_pos.shape[:-1] + (1,), GOAL_HEIGHT)
+    return np.concatenate([hole_est_pos, height], axis=-1), kinematics.tool_down_rotation(
+        hole_est_yaw
+    )
+
+
+def feasible_configuration(
+    pos: np.ndarray, rot: np.ndarray, max_condition: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """IK of tcp poses (..., 3), (..., 3, 3) nearest HOME_Q: q (..., 6), ok (...,).
+
+    ok: a branch exists, |q| <= 2 pi (the joint limits) and the full-Jacobian condition number is
+    at most max_condition.
+    """
+    q, found = kinematics.ik_tcp_closest(pos, rot, PEG_LENGTH)
+    q_safe = np.where(found[..., None], q, kinematics.HOME_Q)
+    cond = kinematics.condition_number(q_safe, PEG_LENGTH, "full")
+    ok = found & np.all(np.abs(q_safe) <= 2.0 * np.pi, axis=-1) & (cond <= max_condition)
+    return q, ok
+
+
+def sample_trials(
+    config: TaskConfig, seed_or_rng: int | np.random.Generator, batch: int
+) -> TrialSpec:
+    """`batch` random trials of `config`; the same seed gives identical specs.
+
+    Candidates whose start configuration (q0 at tcp0) or goal configuration (tcp at the estimated
+    hole centre, table top, tool down) is out of reach, beyond the joint limits or has a condition
+    number above config.max_condition are drawn again.
+    """
+    if not isinstance(config, TaskConfig):
+        raise ValueError(f"config must be a TaskConfig, got {type(config).__name__}")
+    if isinstance(seed_or_rng, bool) or not isinstance(batch, int | np.integer) or batch < 0:
+        raise ValueError(f"sample_trials needs a seed and a batch size >= 0, got {batch!r}")
+    if isinstance(seed_or_rng, np.random.Generator):
+        rng = seed_or_rng
+    elif isinstance(seed_or_rng, int | np.integer):
+        rng = np.random.default_rng(int(seed_or_rng))
+    else:
+        raise ValueError(f"seed_or_rng must be an int or np.random.Generator, not {seed_or_rng!r}")
+    accepted: list[dict[str, np.ndarray]] = []
+    have, drawn = 0, 0
+    while have < batch:
+        if drawn >= MAX_REJECTION_FACTOR * max(batch, 1):
+            raise ValueError(
+                f"sample_trials rejected {drawn - have} of {drawn} candidates (start or goal "
+                f"configuration unreachable or condition number > {config.max_condition:g}): "
+                "shrink the workspace or relax max_condition"
+            )
+        n = (batch - have) + (batch - have) // 8 + 16
+        cand = _candidates(config, rng, n)
+        q0, ok0 = feasible_configuration(cand["tcp0_pos"], cand["tcp0_rot"], config.max_condition)
+        _, ok_goal = feasible_configuration(
+            *goal_pose(cand["hole_est_pos"], cand["hole_est_yaw"]), config.max_condition
+        )
+        keep = np.flatnonzero(ok0 & ok_goal)[: batch - have]
+        cand["q0"] = q0
+        accepted.append({name: value[keep] for name, value in cand.items()})
+        have += keep.size
+        drawn += n
+    if not accepted:
+        accepted.append({n: v[:0] for n, v in _candidates(config, rng, 0).items()})
+        accepted[0]["q0"] = np.zeros((0, 6))
+    arrays = {name: np.concatenate([a[name] for a in accepted]) for name in _SPEC_FIELDS}
+    return TrialSpec.from_arrays(arrays).validate()

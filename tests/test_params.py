@@ -1,0 +1,118 @@
+"""The 38-parameter map: every action is a valid controller, round trips, names and units."""
+
+import numpy as np
+import pytest
+
+from mjx_peg import params as P
+
+RANGES = P.DEFAULT_RANGES
+BOUND = np.array(RANGES.compliance_bound())
+DIAG = np.eye(6, dtype=bool)
+
+
+def _assert_valid(p: P.ControllerParams):
+    """Positive finite gains, finite compliance within the ranges (up to the dtype's rounding)."""
+    rel = 4 * np.finfo(p.compliance.dtype).eps
+    for k, (lo, hi) in ((p.k_t, RANGES.k_t), (p.k_theta, RANGES.k_theta)):
+        assert np.all(np.isfinite(k)) and np.all(k > 0)
+        assert np.all(k >= lo * (1 - rel)) and np.all(k <= hi * (1 + rel))
+    c = p.compliance
+    assert np.all(np.isfinite(c))
+    assert np.all(c[..., DIAG] >= 0.0)
+    assert np.all(np.abs(c) <= BOUND * (1 + rel))
+
+
+def test_names_units_and_count():
+    assert P.N_PARAMS == 38 == len(P.PARAM_NAMES) == len(P.PARAM_UNITS)
+    assert P.PARAM_NAMES[:3] == ("k_t", "k_theta", "C[0,0]") and P.PARAM_NAMES[-1] == "C[5,5]"
+    assert len(set(P.PARAM_NAMES)) == 38
+    assert P.PARAM_UNITS[2 + 6 * 0 + 3] == "m/(N m)" and P.PARAM_UNITS[2 + 6 * 4 + 1] == "rad/N"
+
+
+def test_ranges_from_the_docstring():
+    assert BOUND[0, 0] == 1e-3 and BOUND[5, 5] == 0.05
+    np.testing.assert_allclose(BOUND[0, 1], 5e-4)
+    np.testing.assert_allclose(BOUND[3, 4], 0.025)
+    np.testing.assert_allclose(BOUND[0, 3], 0.5 * np.sqrt(1e-3 * 0.05))
+    np.testing.assert_allclose(BOUND, BOUND.T)
+
+
+@pytest.mark.parametrize("value", [1e6, -1e6, 0.0, 1e300, -1e300])
+def test_extreme_actions_are_valid_controllers(value):
+    p = P.controller_from_action(np.full(38, value))
+    _assert_valid(p)
+
+
+def test_mixed_sign_extremes_and_wide_random_actions_are_valid():
+    rng = np.random.default_rng(0)
+    signs = rng.choice([-1e6, 1e6], size=(64, 38))
+    wide = rng.normal(scale=100.0, size=(256, 38))
+    for action in (signs, wide, wide.astype(np.float32)):
+        with np.errstate(all="raise"):  # no overflow anywhere in the squashing
+            p = P.controller_from_action(action)
+        _assert_valid(p)
+        assert p.compliance.dtype == action.dtype
+
+
+def test_saturated_ends_hit_the_range_edges():
+    p_hi = P.controller_from_action(np.full(38, 1e6))
+    p_lo = P.controller_from_action(np.full(38, -1e6))
+    assert p_hi.k_t == pytest.approx(1000.0) and p_lo.k_theta == pytest.approx(10.0)
+    np.testing.assert_allclose(p_hi.compliance, BOUND)
+    np.testing.assert_allclose(p_lo.compliance, np.where(DIAG, 0.0, -BOUND))
+
+
+def test_zero_action_is_the_middle():
+    p = P.controller_from_action(np.zeros(38))
+    assert p.k_t == pytest.approx(100.0)  # geometric mean of 10 and 1000
+    np.testing.assert_allclose(p.compliance, np.where(DIAG, BOUND / 2, 0.0), atol=1e-18)
+
+
+def test_round_trip_in_a_moderate_box():
+    rng = np.random.default_rng(1)
+    action = rng.uniform(-3.0, 3.0, size=(500, 38))
+    back = P.action_from_controller(P.controller_from_action(action))
+    err = np.abs(back - action).max()
+    print(f"action round trip max error {err:.2e}")
+    assert err < 1e-6
+
+
+def test_action_of_an_edge_value_is_finite():
+    p = P.controller_from_action(np.full(38, -1e6))  # diagonal compliance exactly 0
+    back = P.action_from_controller(p)
+    assert np.all(np.isfinite(back))
+    _assert_valid(P.controller_from_action(back))
+
+
+def test_vector_round_trip_and_layout():
+    rng = np.random.default_rng(2)
+    p = P.controller_from_action(rng.normal(size=(3, 4, 38)))
+    v = P.vector_from_controller(p)
+    assert v.shape == (3, 4, 38)
+    np.testing.assert_array_equal(v[..., 0], p.k_t)
+    np.testing.assert_array_equal(v[..., 2 + 6 * 2 + 5], p.compliance[..., 2, 5])
+    q = P.controller_from_vector(v)
+    for a, b in zip(p, q, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_wrong_length_raises():
+    with pytest.raises(ValueError, match="38"):
+        P.controller_from_action(np.zeros(37))
+
+
+def test_bad_ranges_raise():
+    with pytest.raises(ValueError, match="k_t"):
+        P.ParamRanges(k_t=(0.0, 10.0))
+    with pytest.raises(ValueError, match="rot_compliance_max"):
+        P.ParamRanges(rot_compliance_max=-1.0)
+
+
+def test_stiffness_from_compliance():
+    rng = np.random.default_rng(3)
+    p = P.controller_from_action(rng.normal(size=(5, 38)))
+    k_c = P.stiffness_from_compliance(p.compliance)
+    np.testing.assert_allclose(k_c @ p.compliance, np.broadcast_to(np.eye(6), (5, 6, 6)), atol=1e-8)
+    stiff_z = np.diag([1e-3, 1e-3, 0.0, 0.05, 0.05, 0.05])  # z infinitely stiff: no finite K_c
+    with pytest.raises(ValueError, match="singular"):
+        P.stiffness_from_compliance(stiff_z)
