@@ -46,7 +46,9 @@ class DMPConfig:
     n_basis: int = 20  # Gaussian basis functions of the phase
     alpha_s: float = 4.0  # phase decay: s(tau) = exp(-alpha_s) = 0.018 at the movement's end
     tau: float = 1.0  # s; time scale, and the duration T of the fitted minimum-jerk movement
-    k_ref: float = 10.0  # 1/s; stiffness at which the forcing is fitted: the lowest k_t, k_theta
+    k_ref: float = (
+        300.0  # 1/s; stiffness at which the forcing is fitted (see fit_minimum_jerk_weights)
+    )
 
     def __post_init__(self):
         if not (isinstance(self.n_basis, int) and self.n_basis >= 2):
@@ -134,6 +136,18 @@ def modified_goal(g, y0, f, k_y, dy):
     return g + (g - y0) * f[..., None] / k_y + dy
 
 
+def scaled_modified_goal(g, y0, f, k_ref: float, dy):
+    """(..., 6) Eq. 11 with the fitted forcing scaled by K_y / k_ref: g + (g - y0) f / k_ref + dy.
+
+    The paper fits f once while K_y is learned; unscaled, a stiffness far from the fitting one
+    either ignores the forcing (K >> k_ref: the tcp jumps towards g at once) or is driven
+    backwards by it (K << k_ref). Scaling f with K_y makes g_m the same for every learned
+    stiffness, so the free-space movement keeps the fitted duration and only its tracking lag
+    depends on K_y. Exactly Eq. 11 at K_y = k_ref.
+    """
+    return g + (g - y0) * f[..., None] / k_ref + dy
+
+
 def dmp_acceleration(y, yd, g_m, k_y, d_y, tau):
     """(..., 6) ydd = tau^-1 (K_y (g_m - y) - D_y yd) (Eq. 10); k_y, d_y (..., 6) diagonals."""
     return (k_y * (g_m - y) - d_y * yd) / tau
@@ -165,16 +179,11 @@ def fit_minimum_jerk_weights(config: DMPConfig):
     (Ijspeert et al. 2013, Eq. 2.14): with f = w_i s locally, w_i = sum_t psi_i s f_t / sum_t psi_i
     s^2, on 2001 samples; deterministic.
 
-    At K = k_ref (k_t = k_theta = k_ref) the free-space path is the minimum-jerk trajectory up to
-    the regression error (0.7 % of the travel with the defaults). The forcing term is an
-    acceleration fixed at fit time while K_y is learned, so at another stiffness the path is no
-    longer minimum-jerk; it still converges to g, because f -> 0 with s and what remains is a
-    critically damped linear system. This is the paper's design: fit once (section 3.1), learn
-    k_t, k_theta. Measured with the defaults (tau = 1 s): K > k_ref runs ahead of the profile
-    (90 % of the travel after 0.57 s at K = 30, 0.13 s at K = 1000 instead of 0.76 s) and
-    overshoots g by at most 5 % of the travel (K = 30). K < k_ref would start by pulling back
-    past y0 (by 2.7 times the travel for K = 10, k_ref = 100), which is why the default k_ref is
-    the lowest stiffness of `params.DEFAULT_RANGES`.
+    At K = k_ref the free-space path is the minimum-jerk trajectory up to the regression error
+    (under 1 % of the travel with the defaults). The controller and `rollout` scale the forcing
+    with K_y / k_ref (`scaled_modified_goal`), so the modified goal is the same for every learned
+    stiffness: a stiffer K tracks it more tightly and runs slightly ahead of the profile, a
+    softer one lags; both converge to g because f -> 0 with s. k_ref is the baseline stiffness.
     """
     np = importlib.import_module("numpy")
     tau, k = config.tau, config.k_ref
@@ -221,7 +230,7 @@ def rollout(
     # The modified goal depends on time only: evaluate it once at every step and half step.
     t_half = 0.5 * dt * np.arange(2 * n + 1)
     f = forcing(phase(t_half, tau, config.alpha_s), w, centers, widths)
-    g_m = modified_goal(g, y0, f, k_y, dy)  # (2 n + 1, 6)
+    g_m = scaled_modified_goal(g, y0, f, config.k_ref, dy)  # (2 n + 1, 6)
 
     def deriv(i, y, yd):
         return yd, dmp_acceleration(y, yd, g_m[i], k_y, d_y, tau)
@@ -254,5 +263,6 @@ __all__ = [
     "modified_goal",
     "phase",
     "rollout",
+    "scaled_modified_goal",
     "stiffness_diag",
 ]

@@ -1,4 +1,4 @@
-"""Shared test set-up: headless rendering, a persistent JAX compilation cache, float64 off by default."""
+"""Shared test set-up: headless rendering and a persistent JAX compilation cache."""
 
 import os
 import pathlib

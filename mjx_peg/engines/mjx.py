@@ -1,0 +1,391 @@
+"""The accelerator engine: the whole trial as one jitted, vmapped function over MJX state.
+
+Each slot of the batch owns a copy of the few model fields that differ per trial (board pose,
+grasp pose, friction), vmapped with the data. A physics step is split like C MuJoCo's
+`mj_step1`/`mj_step2` (position and velocity stages, then the controller, then actuation,
+constraint solve, sensors and the implicit-fast integrator), so the controller reads fresh
+kinematics and a one-step-old wrench, as in the C engine. The loop is a `lax.while_loop` in
+chunks of `recycle_every` steps; after each chunk, slots whose trial ended write their result and
+load the next spec, so cost follows the simulated time actually used. Runs on MJX's JAX
+implementation (the Warp implementation needs a CUDA device and `warp-lang`; see `impl`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+from mujoco.mjx._src.support import jac_dot  # MJX's counterpart of mj_jacDot (not re-exported)
+
+from mjx_peg import scene
+from mjx_peg.controller import (
+    Basis,
+    goal_rotation,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
+from mjx_peg.params import ControllerParams
+from mjx_peg.rotations import quat_from_yaw
+from mjx_peg.task import TrialSpec
+from mjx_peg.trial import (
+    TrialConfig,
+    TrialResult,
+    destination,
+    fitted_basis,
+    is_success,
+    trial_reward,
+)
+
+_MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
+
+
+def step1(m: mjx.Model, d: mjx.Data) -> mjx.Data:
+    """Position and velocity stages (C MuJoCo's mj_step1)."""
+    d = mjx.fwd_position(m, d)
+    d = mjx.sensor_pos(m, d)
+    d = mjx.fwd_velocity(m, d)
+    return mjx.sensor_vel(m, d)
+
+
+def step2(m: mjx.Model, d: mjx.Data) -> mjx.Data:
+    """Actuation, constraint solve, acceleration sensors, integration (mj_step2)."""
+    d = mjx.fwd_actuation(m, d)
+    d = mjx.fwd_acceleration(m, d)
+    d = mjx.solve(m, d)
+    d = mjx.sensor_acc(m, d)
+    return mjx.implicit(m, d)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Ids:
+    """Static ids of one scene (plain ints: they are baked into the compiled function)."""
+
+    qpos_adr: tuple
+    tcp: int
+    tcp_body: int
+    ft: int
+    tip: int
+    force_adr: int
+    torque_adr: int
+    board_body: int
+    peg_body: int
+    friction_geoms: tuple
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> _Ids:
+        def obj(kind, name):
+            idx = mujoco.mj_name2id(model, kind, name)
+            assert idx >= 0, f"scene has no {kind.name} named {name!r}"
+            return int(idx)
+
+        site, body = mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY
+        joints = [obj(mujoco.mjtObj.mjOBJ_JOINT, n) for n in scene.JOINT_NAMES]
+        tcp = obj(site, "tcp")
+        sensor = mujoco.mjtObj.mjOBJ_SENSOR
+        return cls(
+            qpos_adr=tuple(int(model.jnt_qposadr[j]) for j in joints),
+            tcp=tcp,
+            tcp_body=int(model.site_bodyid[tcp]),
+            ft=obj(site, "ft"),
+            tip=obj(site, "peg_tip"),
+            force_adr=int(model.sensor_adr[obj(sensor, "ft_force")]),
+            torque_adr=int(model.sensor_adr[obj(sensor, "ft_torque")]),
+            board_body=obj(body, "board"),
+            peg_body=obj(body, "peg"),
+            friction_geoms=tuple(
+                int(g)
+                for g in np.concatenate([scene.peg_geom_ids(model), scene.board_geom_ids(model)])
+            ),
+        )
+
+
+def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig) -> dict:
+    """Per-trial arrays the jitted function consumes (NumPy, leading dim = trials)."""
+    n = len(specs)
+    zeros = np.zeros(n)
+    board_quat = np.asarray(quat_from_yaw(np.asarray(specs.board_yaw, dtype=np.float64)))
+    dz, tilt_x, tilt_y = specs.grasp_error.T
+    peg_pos = np.stack([zeros, zeros, dz], axis=-1)
+    peg_quat = np.stack(
+        [scene.grasp_quat(float(a), float(b)) for a, b in zip(tilt_x, tilt_y, strict=True)]
+    )
+    goal_pos = np.concatenate([specs.hole_est_pos, np.full((n, 1), config.goal_height)], axis=1)
+    goal_rot = goal_rotation(np.asarray(specs.hole_est_yaw, dtype=np.float64))
+    return dict(
+        board_pos3=np.concatenate([specs.board_pos, zeros[:, None]], axis=1),
+        board_quat=board_quat,
+        peg_pos=peg_pos,
+        peg_quat=peg_quat,
+        friction=np.asarray(specs.friction, dtype=np.float64),
+        q0=np.asarray(specs.q0, dtype=np.float64),
+        goal_pos=goal_pos,
+        goal_rot=goal_rot,
+        board_pos=np.asarray(specs.board_pos, dtype=np.float64),
+        size=np.asarray(specs.size, dtype=np.float64),
+        k_t=params.k_t,
+        k_theta=params.k_theta,
+        compliance=params.compliance,
+    )
+
+
+class _Program:
+    """The compiled trial loop for one scene (shape, size)."""
+
+    def __init__(self, model: mujoco.MjModel, config: TrialConfig, batch: int, recycle_every: int):
+        self.ids = ids = _Ids.of(model)
+        self.mx = mjx.put_model(model)
+        self.config = config
+        self.batch = batch
+        self.recycle_every = recycle_every
+        basis = fitted_basis(config.dmp)
+        self.basis = Basis(*(jnp.asarray(a) for a in basis))
+        self.limits = jnp.asarray(scene.TORQUE_LIMITS)
+        self.qpos_adr = jnp.asarray(ids.qpos_adr)
+        self.geoms = jnp.asarray(ids.friction_geoms)
+        self.run = jax.jit(self._run)
+
+    # --- one slot -----------------------------------------------------------------------------
+    def _slot_model(self, fields):
+        """The shared model with this slot's board pose, grasp pose and friction."""
+        ids, mx = self.ids, self.mx
+        body_pos = jnp.asarray(mx.body_pos).at[ids.board_body].set(fields["board_pos3"])
+        body_quat = jnp.asarray(mx.body_quat).at[ids.board_body].set(fields["board_quat"])
+        friction = jnp.asarray(mx.geom_friction).at[self.geoms, 0].set(fields["friction"])
+        return mx.replace(
+            body_pos=body_pos.at[ids.peg_body].set(fields["peg_pos"]),
+            body_quat=body_quat.at[ids.peg_body].set(fields["peg_quat"]),
+            geom_friction=friction,
+        )
+
+    def _sense(self, m, d):
+        ids = self.ids
+        tcp_pos = d.site_xpos[ids.tcp]
+        tcp_rot = d.site_xmat[ids.tcp].reshape(3, 3)
+        jacp, jacr = mjx.jac(m, d, tcp_pos, ids.tcp_body)
+        jdp, jdr = jac_dot(m, d, tcp_pos, ids.tcp_body)
+        jac = jnp.concatenate([jacp.T, jacr.T], axis=0)
+        jdot_qdot = jnp.concatenate([jdp.T, jdr.T], axis=0) @ d.qvel
+        force = d.sensordata[ids.force_adr : ids.force_adr + 3]
+        torque = d.sensordata[ids.torque_adr : ids.torque_adr + 3]
+        rot_ft = d.site_xmat[ids.ft].reshape(3, 3)
+        return tcp_pos, tcp_rot, jac, jdot_qdot, force, torque, rot_ft
+
+    def _init(self, inp):
+        """Data at rest at q0 under gravity compensation, the tare, and the skill constants."""
+        cfg = self.config
+        fields = {k: inp[k] for k in _MODEL_FIELDS}
+        m = self._slot_model(fields)
+        d = mjx.make_data(m)
+        d = d.replace(qpos=d.qpos.at[self.qpos_adr].set(inp["q0"]))
+        d = mjx.forward(m, d)
+        d = d.replace(ctrl=d.qfrc_bias)
+        d = mjx.forward(m, d)
+        tcp_pos, tcp_rot, *_, force, torque, _ = self._sense(m, d)
+        tare = jnp.concatenate([force, torque])
+        y0 = start_state(inp["goal_pos"], inp["goal_rot"], tcp_pos, tcp_rot)
+        params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
+        skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
+        tip = d.site_xpos[self.ids.tip]
+        start_distance = jnp.linalg.norm(tip - destination(inp["board_pos"]))
+        slot = dict(
+            fields=fields,
+            skill=skill,
+            tare=tare,
+            board_pos=inp["board_pos"],
+            size=inp["size"],
+            start_distance=start_distance,
+            step=jnp.zeros((), jnp.int32),
+            peak_force=jnp.zeros(()),
+            ended=jnp.zeros((), bool),
+            success=jnp.zeros((), bool),
+            unstable=jnp.zeros((), bool),
+            tip=tip,
+        )
+        return d, slot
+
+    def _step(self, d, slot):
+        """One control period of one slot; ended slots keep their outcome frozen."""
+        cfg = self.config
+        m = self._slot_model(slot["fields"])
+        d = step1(m, d)
+        tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft = self._sense(m, d)
+        skill = slot["skill"]
+        wrench = wrench_in_goal_frame(force, torque, slot["tare"], rot_ft, skill.goal_rot)
+        tip = d.site_xpos[self.ids.tip]
+        step = slot["step"]
+        success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height)
+        finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))
+        unstable = ~finite | jnp.any(jnp.abs(d.qvel) > cfg.max_joint_speed)
+        ended_now = ~slot["ended"] & (success | unstable | (step >= cfg.max_steps))
+        live = ~(slot["ended"] | ended_now)
+        u = skill_torque(
+            skill,
+            self.basis,
+            step * cfg.timestep,
+            tcp_pos,
+            tcp_rot,
+            jac,
+            jdq,
+            d.qvel,
+            mjx.full_m(m, d),
+            d.qfrc_bias - d.qfrc_passive,
+            wrench,
+            self.limits,
+            cfg.dmp.tau,
+            cfg.dmp.alpha_s,
+            cfg.dmp.k_ref,
+            cfg.pinv_damping,
+        )
+        u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
+        d = step2(m, d.replace(ctrl=u))
+        force_mag = jnp.where(live, jnp.linalg.norm(wrench[:3]), 0.0)
+        slot = dict(
+            slot,
+            step=jnp.where(live, step + 1, step),
+            peak_force=jnp.maximum(slot["peak_force"], force_mag),
+            ended=slot["ended"] | ended_now,
+            success=jnp.where(ended_now, success & ~unstable, slot["success"]),
+            unstable=jnp.where(ended_now, unstable, slot["unstable"]),
+            tip=jnp.where(live | ended_now, tip, slot["tip"]),
+        )
+        return d, slot
+
+    # --- the batch ----------------------------------------------------------------------------
+    def _run(self, inputs: dict):
+        """All trials of `inputs` (leading dim n, padded to a multiple of nothing) -> outcomes."""
+        n = inputs["q0"].shape[0]
+        b = self.batch
+        init = jax.vmap(self._init)
+        step = jax.vmap(self._step)
+
+        def take(indices):
+            safe = jnp.minimum(indices, n - 1)
+            return jax.tree.map(lambda a: a[safe], inputs)
+
+        index = jnp.arange(b)
+        d, slot = init(take(index))
+        out = dict(
+            success=jnp.zeros(n, bool),
+            unstable=jnp.zeros(n, bool),
+            steps=jnp.zeros(n, jnp.int32),
+            peak_force=jnp.zeros(n),
+            tip=jnp.zeros((n, 3)),
+            start_distance=jnp.ones(n),
+        )
+        state = (d, slot, index, jnp.asarray(b), out)
+
+        def chunk(state):
+            d, slot, index, next_index, out = state
+
+            def body(_, carry):
+                return step(*carry)
+
+            d, slot = jax.lax.fori_loop(0, self.recycle_every, body, (d, slot))
+            # Slots that ended write their outcome and take the next spec.
+            done = slot["ended"] & (index < n)
+            dest = jnp.where(done, index, n)  # index n is dropped by mode="drop"
+            out = dict(
+                success=out["success"].at[dest].set(slot["success"], mode="drop"),
+                unstable=out["unstable"].at[dest].set(slot["unstable"], mode="drop"),
+                steps=out["steps"].at[dest].set(slot["step"], mode="drop"),
+                peak_force=out["peak_force"].at[dest].set(slot["peak_force"], mode="drop"),
+                tip=out["tip"].at[dest].set(slot["tip"], mode="drop"),
+                start_distance=out["start_distance"]
+                .at[dest]
+                .set(slot["start_distance"], mode="drop"),
+            )
+            finished = slot["ended"]
+            new_index = jnp.where(finished, next_index + jnp.cumsum(finished) - 1, index)
+            new_index = jnp.where(finished & (new_index >= n), n, new_index)
+            next_index = next_index + jnp.sum(finished)
+
+            def reload(args):
+                d2, slot2 = init(take(new_index))
+                # Slots beyond the last spec stay ended.
+                slot2 = dict(slot2, ended=new_index >= n)
+
+                def pick(new, old):
+                    mask = finished.reshape(finished.shape + (1,) * (new.ndim - 1))
+                    return jnp.where(mask, new, old)
+
+                return jax.tree.map(pick, (d2, slot2), args)
+
+            d, slot = jax.lax.cond(jnp.any(finished), reload, lambda a: a, (d, slot))
+            return d, slot, new_index, next_index, out
+
+        def pending(state):
+            return jnp.any(state[2] < n)
+
+        *_, out = jax.lax.while_loop(pending, chunk, state)
+        return out
+
+
+@functools.lru_cache(maxsize=16)
+def _program(shape: str, size: float, config: TrialConfig, batch: int, recycle_every: int):
+    return _Program(scene.load_model(shape, size), config, batch, recycle_every)
+
+
+def run_trials(
+    specs: TrialSpec,
+    params: ControllerParams,
+    config: TrialConfig,
+    batch: int | None = None,
+    recycle_every: int = 50,
+    progress: Callable[[int], None] | None = None,
+) -> TrialResult:
+    """Run every trial of `specs` with per-trial `params` on MJX, grouped by scene."""
+    n = len(specs)
+    results = [None] * n
+    inputs_all = _slot_inputs(specs, params, config)
+    keys = [
+        (scene.SHAPES[int(s)], round(float(z), 9))
+        for s, z in zip(specs.shape_id, specs.size, strict=True)
+    ]
+    out_arrays = {
+        "success": np.zeros(n, bool),
+        "unstable": np.zeros(n, bool),
+        "steps": np.zeros(n, np.int64),
+        "peak_force": np.zeros(n),
+        "final_tip_pos": np.zeros((n, 3)),
+        "start_distance": np.ones(n),
+    }
+    for key in sorted(set(keys)):
+        rows = np.array([i for i, k in enumerate(keys) if k == key])
+        b = min(batch or 256, len(rows))
+        program = _program(key[0], key[1], config, b, recycle_every)
+        inputs = {k: jnp.asarray(v[rows]) for k, v in inputs_all.items()}
+        out = jax.device_get(program.run(inputs))
+        out_arrays["success"][rows] = out["success"]
+        out_arrays["unstable"][rows] = out["unstable"]
+        out_arrays["steps"][rows] = out["steps"]
+        out_arrays["peak_force"][rows] = out["peak_force"]
+        out_arrays["final_tip_pos"][rows] = out["tip"]
+        out_arrays["start_distance"][rows] = out["start_distance"]
+        if progress is not None:
+            progress(len(rows))
+    del results
+    success = out_arrays["success"]
+    reward = trial_reward(
+        success,
+        out_arrays["final_tip_pos"],
+        np.asarray(specs.board_pos, dtype=np.float64),
+        out_arrays["start_distance"],
+        config.reward,
+    )
+    return TrialResult(
+        success=success,
+        time_s=out_arrays["steps"] * config.timestep,
+        final_tip_pos=out_arrays["final_tip_pos"],
+        peak_force=out_arrays["peak_force"],
+        reward=np.asarray(reward),
+        unstable=out_arrays["unstable"],
+        steps=out_arrays["steps"],
+    )

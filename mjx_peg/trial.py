@@ -1,0 +1,171 @@
+"""One insertion trial, defined once for both engines.
+
+A trial: the board, peg and errors of one `TrialSpec`, the compliant DMP with the trial's 38
+controller parameters driving the operational-space torque controller at 500 Hz (2 ms physics),
+until the peg tip has passed the hole and is within `success_height` of the table, or until the
+time limit. Both engines (`engines/mujoco.py`, `engines/mjx.py`) use the functions here for the
+goal, the success test, the reward and the numerical-failure test, so their outcomes can only
+differ through the physics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+
+from mjx_peg import dmp
+from mjx_peg.controller import Basis, goal_rotation
+from mjx_peg.params import ControllerParams, controller_from_vector
+
+SUCCESS_REWARD = 38000.0  # the paper's outcome reward
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardConfig:
+    """Reward of one trial: `success` on success, else up to `shaped` by the tip's progress."""
+
+    success: float = SUCCESS_REWARD
+    shaped: float = 10000.0  # a failed trial earns shaped * (1 - d_end / d_start), clipped at 0
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialConfig:
+    """Everything about a trial that is not drawn per trial."""
+
+    time_limit_s: float = 60.0  # the paper's evaluation limit; training may use less
+    timestep: float = 0.002  # physics and control period (500 Hz), must match the scene
+    goal_height: float = 0.0  # height of the nominal tip's goal above the table top (m)
+    success_height: float = 0.02  # success: tip within this height of the table (m)
+    dmp: dmp.DMPConfig = dataclasses.field(default_factory=dmp.DMPConfig)
+    pinv_damping: float = 0.01  # damping of J+ near singularities
+    # rad/s. Faster counts as a numerical failure (`unstable`): twice the UR5e's 180 deg/s joint
+    # limit, where the real arm would protective-stop. Baseline trials stay under 3 rad/s;
+    # chattering or diverging controllers exceed it long before the physics returns NaN.
+    max_joint_speed: float = 2.0 * math.pi
+    reward: RewardConfig = dataclasses.field(default_factory=RewardConfig)
+
+    def __post_init__(self):
+        for name in ("time_limit_s", "timestep", "success_height", "max_joint_speed"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"TrialConfig.{name} must be a positive number, got {value!r}")
+        if self.time_limit_s < self.timestep:
+            raise ValueError(
+                f"TrialConfig.time_limit_s ({self.time_limit_s}) is shorter than one step"
+            )
+
+    @property
+    def max_steps(self) -> int:
+        return int(round(self.time_limit_s / self.timestep))
+
+    def replace(self, **changes) -> TrialConfig:
+        return dataclasses.replace(self, **changes)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialResult:
+    """Outcome of a batch of trials, in spec order (NumPy arrays, leading dim B)."""
+
+    success: np.ndarray  # (B,) bool
+    time_s: np.ndarray  # (B,) time to complete on success, else the time simulated
+    final_tip_pos: np.ndarray  # (B, 3) true peg tip at the end, world frame
+    peak_force: np.ndarray  # (B,) largest contact force magnitude seen by the F/T sensor (N)
+    reward: np.ndarray  # (B,) paper scale (38000 on success)
+    unstable: np.ndarray  # (B,) bool: physics blew up or joints beyond max_joint_speed (failed)
+    steps: np.ndarray  # (B,) physics steps simulated
+
+    def __len__(self) -> int:
+        return int(self.success.shape[0])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_arrays(cls, arrays) -> TrialResult:
+        return cls(**{f.name: np.asarray(arrays[f.name]) for f in dataclasses.fields(cls)})
+
+    @classmethod
+    def concat(cls, results) -> TrialResult:
+        return cls(
+            **{
+                f.name: np.concatenate([getattr(r, f.name) for r in results])
+                for f in dataclasses.fields(cls)
+            }
+        )
+
+    def summary(self) -> str:
+        """One line: success rate, median time to complete, failures by cause."""
+        n = len(self)
+        ok = self.success
+        median = float(np.median(self.time_s[ok])) if ok.any() else float("nan")
+        return (
+            f"{int(ok.sum())}/{n} succeeded ({100.0 * ok.mean():.1f} %), "
+            f"median time {median:.2f} s, {int(self.unstable.sum())} unstable, "
+            f"mean reward {float(self.reward.mean()):.0f}"
+        )
+
+
+@functools.lru_cache(maxsize=8)
+def fitted_basis(config: dmp.DMPConfig) -> Basis:
+    """The forcing term's basis and weights, fitted once per DMP config (NumPy, float64)."""
+    centers, widths = dmp.basis_centers(config.n_basis, config.alpha_s)
+    weights = dmp.fit_minimum_jerk_weights(config)
+    return Basis(np.asarray(weights), np.asarray(centers), np.asarray(widths))
+
+
+def trial_goals(hole_est_pos: np.ndarray, hole_est_yaw: np.ndarray, config: TrialConfig):
+    """Goal of the tcp per trial: the estimated hole centre at `goal_height`, tool down.
+
+    hole_est_pos: (B, 2); hole_est_yaw: (B,) -> goal_pos (B, 3), goal_rot (B, 3, 3).
+    """
+    goal_pos = np.concatenate(
+        [hole_est_pos, np.full((hole_est_pos.shape[0], 1), config.goal_height)], axis=1
+    )
+    return goal_pos, goal_rotation(np.asarray(hole_est_yaw, dtype=np.float64))
+
+
+def destination(board_pos):
+    """(..., 3) where a successful tip ends: the true hole axis at the table top."""
+    xp = board_pos.__array_namespace__()
+    return xp.concat([board_pos, xp.zeros_like(board_pos[..., :1])], axis=-1)
+
+
+def is_success(tip_pos, board_pos, size, success_height: float):
+    """(...,) bool: the tip passed the hole (inside its footprint) and is near the table."""
+    xp = tip_pos.__array_namespace__()
+    lateral = xp.linalg.vector_norm(tip_pos[..., :2] - board_pos, axis=-1)
+    return (tip_pos[..., 2] < success_height) & (lateral < size)
+
+
+def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConfig):
+    """(...,) paper-scale reward: `success` on success, else shaped by the tip's progress."""
+    xp = tip_pos.__array_namespace__()
+    d_end = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
+    progress = xp.clip(1.0 - d_end / xp.maximum(start_distance, 1e-6), 0.0, 1.0)
+    return xp.where(success, reward.success, reward.shaped * progress)
+
+
+def as_controller_params(params, batch: int) -> ControllerParams:
+    """Validate and broadcast controller parameters to a batch of `batch` trials (NumPy).
+
+    Accepts `ControllerParams` or physical 38-vectors of shape (38,) or (batch, 38).
+    """
+    if not isinstance(params, ControllerParams):
+        vec = np.asarray(params, dtype=np.float64)
+        if vec.shape not in ((38,), (batch, 38)):
+            raise ValueError(
+                f"controller parameters must have shape (38,) or ({batch}, 38), got {vec.shape}"
+            )
+        params = controller_from_vector(vec)
+    k_t = np.broadcast_to(np.asarray(params.k_t, dtype=np.float64), (batch,))
+    k_theta = np.broadcast_to(np.asarray(params.k_theta, dtype=np.float64), (batch,))
+    compliance = np.broadcast_to(np.asarray(params.compliance, dtype=np.float64), (batch, 6, 6))
+    for name, value in (("k_t", k_t), ("k_theta", k_theta), ("compliance", compliance)):
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"controller parameter {name} has NaN or infinite values")
+    if np.any(k_t <= 0) or np.any(k_theta <= 0):
+        raise ValueError("controller stiffnesses k_t and k_theta must be positive")
+    return ControllerParams(k_t.copy(), k_theta.copy(), compliance.copy())

@@ -1,0 +1,87 @@
+"""Trials in physics: the baseline inserts, bad physics stays contained, the engines agree."""
+
+import numpy as np
+import pytest
+
+from mjx_peg.baseline import baseline_params
+from mjx_peg.engines import run_trials
+from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.trial import TrialConfig
+
+NO_ERRORS = dict(linear_error=0.0, angular_error=0.0)
+
+
+def _specs(shape, n, seed, **errors):
+    config = TaskConfig(shapes=(shape,), sizes=(0.05,), **errors)
+    return sample_trials(config, seed, n)
+
+
+@pytest.mark.parametrize("shape", ["circle", "square", "triangle"])
+def test_baseline_inserts_without_errors(shape):
+    specs = _specs(shape, 100, seed=1, **NO_ERRORS)
+    result = run_trials(specs, baseline_params(), engine="mujoco", config=TrialConfig())
+    print(shape, result.summary())
+    assert result.success.mean() >= 0.98, result.summary()
+    assert np.median(result.time_s[result.success]) < 4.0, result.summary()
+    assert not result.unstable.any()
+    # Success means the tip is near the table, inside the hole's footprint.
+    tips = result.final_tip_pos[result.success]
+    assert np.all(tips[:, 2] < 0.02)
+    lateral = np.linalg.norm(tips[:, :2] - specs.board_pos[result.success], axis=1)
+    assert np.all(lateral < 0.05)
+    assert np.all(result.reward[result.success] == 38000.0)
+
+
+def test_unstable_parameters_fail_alone():
+    """Huge gains blow up their own trials; the other trials of the batch are unaffected."""
+    specs = _specs("square", 8, seed=2, linear_error=0.002, angular_error=np.deg2rad(2.0))
+    good = np.tile(baseline_params(), (8, 1))
+    alone = run_trials(specs, good, engine="mujoco", threads=1, slots_per_thread=8)
+    wild = good.copy()
+    wild[1::2, 0] = 1e9  # k_t: stiffness far beyond anything a 2 ms step can integrate
+    wild[1::2, 1] = 1e9
+    mixed = run_trials(specs, wild, engine="mujoco", threads=1, slots_per_thread=8)
+    assert mixed.unstable[1::2].all()
+    assert not mixed.success[1::2].any()
+    assert np.all(mixed.reward[1::2] < 38000.0)
+    np.testing.assert_array_equal(mixed.success[::2], alone.success[::2])
+    np.testing.assert_allclose(mixed.time_s[::2], alone.time_s[::2])
+    np.testing.assert_allclose(mixed.final_tip_pos[::2], alone.final_tip_pos[::2], atol=1e-9)
+
+
+def test_results_do_not_depend_on_threads_or_slots():
+    specs = _specs("circle", 6, seed=3, linear_error=0.002, angular_error=np.deg2rad(3.0))
+    a = run_trials(specs, baseline_params(), engine="mujoco", threads=1, slots_per_thread=6)
+    b = run_trials(specs, baseline_params(), engine="mujoco", threads=2, slots_per_thread=1)
+    np.testing.assert_array_equal(a.success, b.success)
+    np.testing.assert_allclose(a.final_tip_pos, b.final_tip_pos, atol=1e-9)
+
+
+def test_bad_input_is_one_clear_error():
+    specs = _specs("square", 2, seed=4)
+    with pytest.raises(ValueError, match="unknown engine"):
+        run_trials(specs, baseline_params(), engine="bullet")
+    bad = baseline_params().copy()
+    bad[5] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        run_trials(specs, bad, engine="mujoco")
+    with pytest.raises(ValueError, match="shape"):
+        run_trials(specs, np.zeros(37), engine="mujoco")
+    with pytest.raises(ValueError):
+        run_trials("not specs", baseline_params(), engine="mujoco")
+
+
+@pytest.mark.slow
+def test_engines_agree():
+    """C MuJoCo and MJX give the same outcomes on the same 16 specs (sim-to-sim check)."""
+    specs = _specs("square", 16, seed=5, linear_error=0.003, angular_error=np.deg2rad(4.0))
+    config = TrialConfig(time_limit_s=4.0)
+    cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config)
+    acc = run_trials(specs, baseline_params(), engine="mjx", config=config, batch=16)
+    agree = (cpu.success == acc.success).mean()
+    print("mujoco", cpu.summary(), "| mjx", acc.summary(), "| agree", agree)
+    assert agree >= 15 / 16
+    both = cpu.success & acc.success
+    assert both.sum() >= 8
+    ratio = np.median(acc.time_s[both]) / np.median(cpu.time_s[both])
+    assert abs(ratio - 1.0) < 0.1
