@@ -65,20 +65,23 @@ def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float) -> 
     return Skill(goal_pos, goal_rot, y0, k_y, dmp.critical_damping(k_y, tau), params.compliance)
 
 
-def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, goal_rot):
-    """(..., 6) external wrench on the peg in the goal frame from a tared F/T reading.
+def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, lever_world, goal_rot):
+    """(..., 6) external wrench on the peg at the tcp, in the goal frame, from a tared F/T reading.
 
     force_site, torque_site: (..., 3) sensor reading in the sensor site frame (MuJoCo reports the
-    force the flange exerts on the peg); tare: (..., 6) the reading at rest at the start;
-    rot_site: (..., 3, 3) sensor site orientation. The contact wrench is the negative of the
-    change of the flange's load on the peg.
+    load the flange exerts on the peg, so the contact wrench is minus its change since the tare);
+    tare: (..., 6) the reading at rest at the start; rot_site: (..., 3, 3) sensor orientation;
+    lever_world: (..., 3) p_sensor - p_tcp, world frame. The moment is referred to the tcp, the
+    point the DMP controls: m_tcp = m_sensor + (p_sensor - p_tcp) x f. Referred to the sensor,
+    150 mm above the tip, every lateral tip force would become a moment that tilts the peg.
     """
     xp = force_site.__array_namespace__()
-    f = -(force_site - tare[..., :3])
-    m = -(torque_site - tare[..., 3:])
-    to_goal = xp.matrix_transpose(goal_rot) @ rot_site
-    f_goal = (to_goal @ f[..., None])[..., 0]
-    m_goal = (to_goal @ m[..., None])[..., 0]
+    f_world = (rot_site @ (tare[..., :3] - force_site)[..., None])[..., 0]
+    m_world = (rot_site @ (tare[..., 3:] - torque_site)[..., None])[..., 0]
+    m_world = m_world + xp.linalg.cross(lever_world, f_world)
+    to_goal = xp.matrix_transpose(goal_rot)
+    f_goal = (to_goal @ f_world[..., None])[..., 0]
+    m_goal = (to_goal @ m_world[..., None])[..., 0]
     return xp.concat([f_goal, m_goal], axis=-1)
 
 

@@ -48,21 +48,24 @@ def run_demo(args) -> dict:
     params = as_controller_params(baseline_params(), 1)
     every = max(1, int(round(0.25 / config.timestep)))
     trace = {"t": [], "tip": [], "wrench": []}
-    snapshots = []
+    snapshots, last = [], []
 
     def observe(worker, rows, wrench):
         step = int(worker.step[0])
         trace["t"].append(step * config.timestep)
         trace["tip"].append(worker.tip_pos[0].copy())
         trace["wrench"].append(wrench[0].copy())
+        _, d, _ = worker.current[0]
+        last[:] = [(step * config.timestep, d.qpos.copy())]
         if args.frames and step % every == 0:
-            _, d, _ = worker.current[0]
-            snapshots.append((step * config.timestep, d.qpos.copy()))
+            snapshots.append(last[0])
 
     result = engine.run_trials(
         specs, params, config, threads=1, slots_per_thread=1, observer=observe
     )
     trace = {k: np.asarray(v) for k, v in trace.items()}
+    if args.frames and last and (not snapshots or snapshots[-1][0] != last[0][0]):
+        snapshots.append(last[0])
     return {"specs": specs, "result": result, "trace": trace, "snapshots": snapshots}
 
 
@@ -95,14 +98,29 @@ def _plot(run: dict, path: pathlib.Path) -> None:
 
 
 def _frames(run: dict, args, path: pathlib.Path) -> None:
-    from mjx_peg.render import render_views
+    """A strip of close-up frames around the hole at evenly spaced moments of the trial."""
+    import mujoco
+
+    from mjx_peg.render import render_rgb, save_png
 
     specs, snaps = run["specs"], run["snapshots"]
     if not snaps:
         return
+    model = scene.load_model(args.shape, args.size / 1000.0)
+    scene.set_board_pose(model, *specs.board_pos[0], specs.board_yaw[0])
+    scene.set_grasp(model, *specs.grasp_error[0])
+    data = mujoco.MjData(model)
+    camera = mujoco.MjvCamera()
+    camera.lookat[:] = (*specs.board_pos[0], scene.HOLE_DEPTH + 0.03)
+    camera.distance, camera.elevation, camera.azimuth = 0.45, -25.0, 200.0
     picks = np.linspace(0, len(snaps) - 1, min(args.frames, len(snaps))).round().astype(int)
-    states = [snaps[i] for i in picks]
-    render_views(specs, states, path)
+    tiles = []
+    for i in picks:
+        _, qpos = snaps[i]
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        tiles.append(render_rgb(model, data, camera, 320, 320))
+    save_png(path, np.concatenate(tiles, axis=1))
 
 
 def main(argv=None) -> int:

@@ -21,15 +21,6 @@ TOL32 = 1e-4
 BATCH = 8
 
 
-@pytest.fixture
-def x64():
-    """Enable float64 in JAX for one test and restore the previous setting (it is global)."""
-    previous = jax.config.jax_enable_x64
-    jax.config.update("jax_enable_x64", True)
-    yield
-    jax.config.update("jax_enable_x64", previous)
-
-
 def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 

@@ -176,7 +176,8 @@ class _Program:
         force = d.sensordata[ids.force_adr : ids.force_adr + 3]
         torque = d.sensordata[ids.torque_adr : ids.torque_adr + 3]
         rot_ft = d.site_xmat[ids.ft].reshape(3, 3)
-        return tcp_pos, tcp_rot, jac, jdot_qdot, force, torque, rot_ft
+        lever = d.site_xpos[ids.ft] - tcp_pos
+        return tcp_pos, tcp_rot, jac, jdot_qdot, force, torque, rot_ft, lever
 
     def _init(self, inp):
         """Data at rest at q0 under gravity compensation, the tare, and the skill constants."""
@@ -188,7 +189,7 @@ class _Program:
         d = mjx.forward(m, d)
         d = d.replace(ctrl=d.qfrc_bias)
         d = mjx.forward(m, d)
-        tcp_pos, tcp_rot, *_, force, torque, _ = self._sense(m, d)
+        tcp_pos, tcp_rot, _, _, force, torque, _, _ = self._sense(m, d)
         tare = jnp.concatenate([force, torque])
         y0 = start_state(inp["goal_pos"], inp["goal_rot"], tcp_pos, tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
@@ -216,9 +217,9 @@ class _Program:
         cfg = self.config
         m = self._slot_model(slot["fields"])
         d = step1(m, d)
-        tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft = self._sense(m, d)
+        tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft, lever = self._sense(m, d)
         skill = slot["skill"]
-        wrench = wrench_in_goal_frame(force, torque, slot["tare"], rot_ft, skill.goal_rot)
+        wrench = wrench_in_goal_frame(force, torque, slot["tare"], rot_ft, lever, skill.goal_rot)
         tip = d.site_xpos[self.ids.tip]
         step = slot["step"]
         success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height)

@@ -132,6 +132,7 @@ class _Worker:
         self.tip_pos, self.sim_time = np.zeros((b, 3)), np.zeros(b)
         self.force, self.torque = np.zeros((b, 3)), np.zeros((b, 3))
         self.ft_rot = np.tile(np.eye(3), (b, 1, 1))
+        self.ft_lever = np.zeros((b, 3))  # p_ft - p_tcp, world
         self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
 
     def _env(self, slot: int, shape: str, size: float):
@@ -198,6 +199,7 @@ class _Worker:
         mujoco.mj_fullM(m, d, self.mass[slot])
         self.tcp_rot[slot] = d.site_xmat[lay.tcp].reshape(3, 3)
         self.ft_rot[slot] = d.site_xmat[lay.ft].reshape(3, 3)
+        self.ft_lever[slot] = d.site_xpos[lay.ft] - self.tcp_pos[slot]
         self.tip_pos[slot] = d.site_xpos[lay.tip]
         self.qvel[slot] = d.qvel
         self.bias[slot] = d.qfrc_bias - d.qfrc_passive  # h: Coriolis, gravity, joint damping
@@ -245,7 +247,7 @@ class _Worker:
                 return
             rows = np.asarray(live)
             wrench = wrench_in_goal_frame(
-                self.force, self.torque, self.tare, self.ft_rot, self.goal_rot
+                self.force, self.torque, self.tare, self.ft_rot, self.ft_lever, self.goal_rot
             )
             force = np.linalg.norm(wrench[:, :3], axis=-1)
             self.peak_force[rows] = np.maximum(self.peak_force[rows], force[rows])
