@@ -14,32 +14,20 @@ from __future__ import annotations
 
 import argparse
 import os
-import pathlib
-import platform
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
 from mjx_peg import control, dmp, params
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
 HEADING = "## Controller step"
 CONFIG = dmp.DMPConfig()
 CENTERS, WIDTHS = dmp.basis_centers(CONFIG.n_basis, CONFIG.alpha_s)
 WEIGHTS = dmp.fit_minimum_jerk_weights(CONFIG)
 LIMITS = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
-
-
-def cpu_name() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def controller_step(
@@ -163,18 +151,6 @@ def main() -> None:
     print(section)
     if args.write:
         write_section(ROOT / "BENCHMARKS.md", HEADING, section)
-
-
-def write_section(path: pathlib.Path, heading: str, section: str) -> None:
-    """Replace (or append) the markdown section that starts at `heading`."""
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    start = text.find(heading)
-    if start < 0:
-        text = text.rstrip() + "\n\n" + section
-    else:
-        end = text.find("\n## ", start + len(heading))
-        text = text[:start] + section + (text[end + 1 :] if end >= 0 else "")
-    path.write_text(text)
 
 
 if __name__ == "__main__":

@@ -267,7 +267,7 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
         relative = matrix_from_rotvec(y[3:]) @ matrix_from_rotvec(y_ref[i, 3:]).T
         ang_err = max(ang_err, np.linalg.norm(rotvec_from_matrix(relative)))
         f = dmp.forcing(dmp.phase(t, config.tau, config.alpha_s), weights, centers, widths)
-        g_m = dmp.modified_goal(np.zeros(6), y0, f, k_y, np.zeros(6))
+        g_m = dmp.scaled_modified_goal(np.zeros(6), y0, f, config.k_ref, np.zeros(6))
         ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, config.tau)
         u = control.osc_torque(
             mass, jac, jdqd, bias, control.world_from_task_accel(ydd, goal_rot), PINV_DAMPING

@@ -73,9 +73,13 @@ def test_bad_input_is_one_clear_error():
 
 @pytest.mark.slow
 def test_engines_agree():
-    """C MuJoCo and MJX give the same outcomes on the same 16 specs (sim-to-sim check)."""
-    specs = _specs("square", 16, seed=5, linear_error=0.003, angular_error=np.deg2rad(4.0))
-    config = TrialConfig(time_limit_s=4.0)
+    """C MuJoCo and MJX give the same outcomes on the same 16 specs (sim-to-sim check).
+
+    MJX on this CPU compiles in about a minute and runs ~100 env-steps/s, so the trials are
+    short (1.5 s limit); the 100-spec comparison is in the closing note of the engines issue.
+    """
+    specs = _specs("square", 16, seed=5, linear_error=0.002, angular_error=np.deg2rad(3.0))
+    config = TrialConfig(time_limit_s=1.5)
     cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config)
     acc = run_trials(specs, baseline_params(), engine="mjx", config=config, batch=16)
     agree = (cpu.success == acc.success).mean()
@@ -85,3 +89,4 @@ def test_engines_agree():
     assert both.sum() >= 8
     ratio = np.median(acc.time_s[both]) / np.median(cpu.time_s[both])
     assert abs(ratio - 1.0) < 0.1
+    assert not acc.unstable.any()

@@ -44,6 +44,15 @@ from mjx_peg.trial import (
     trial_reward,
 )
 
+# outcome array -> slot field it is written from
+_OUTCOMES = {
+    "success": "success",
+    "unstable": "unstable",
+    "steps": "step",
+    "peak_force": "peak_force",
+    "tip": "tip",
+    "start_distance": "start_distance",
+}
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
 
@@ -261,7 +270,7 @@ class _Program:
 
     # --- the batch ----------------------------------------------------------------------------
     def _run(self, inputs: dict):
-        """All trials of `inputs` (leading dim n, padded to a multiple of nothing) -> outcomes."""
+        """Outcomes of all n trials of `inputs` (leading dim n), b slots recycled until done."""
         n = inputs["q0"].shape[0]
         b = self.batch
         init = jax.vmap(self._init)
@@ -271,8 +280,11 @@ class _Program:
             safe = jnp.minimum(indices, n - 1)
             return jax.tree.map(lambda a: a[safe], inputs)
 
-        index = jnp.arange(b)
-        d, slot = init(take(index))
+        # Every slot starts ended and empty; the first chunk loads it. `init` is traced once.
+        shapes = jax.eval_shape(init, take(jnp.arange(b)))
+        d, slot = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
+        slot = dict(slot, ended=jnp.ones(b, bool))
+        index = jnp.full(b, n)  # index n: no spec (writes to it are dropped)
         out = dict(
             success=jnp.zeros(n, bool),
             unstable=jnp.zeros(n, bool),
@@ -281,37 +293,24 @@ class _Program:
             tip=jnp.zeros((n, 3)),
             start_distance=jnp.ones(n),
         )
-        state = (d, slot, index, jnp.asarray(b), out)
+        state = (d, slot, index, jnp.asarray(0), out)
 
         def chunk(state):
             d, slot, index, next_index, out = state
-
-            def body(_, carry):
-                return step(*carry)
-
-            d, slot = jax.lax.fori_loop(0, self.recycle_every, body, (d, slot))
-            # Slots that ended write their outcome and take the next spec.
-            done = slot["ended"] & (index < n)
-            dest = jnp.where(done, index, n)  # index n is dropped by mode="drop"
-            out = dict(
-                success=out["success"].at[dest].set(slot["success"], mode="drop"),
-                unstable=out["unstable"].at[dest].set(slot["unstable"], mode="drop"),
-                steps=out["steps"].at[dest].set(slot["step"], mode="drop"),
-                peak_force=out["peak_force"].at[dest].set(slot["peak_force"], mode="drop"),
-                tip=out["tip"].at[dest].set(slot["tip"], mode="drop"),
-                start_distance=out["start_distance"]
-                .at[dest]
-                .set(slot["start_distance"], mode="drop"),
-            )
+            # Slots whose trial ended write their outcome and take the next spec.
+            dest = jnp.where(slot["ended"], index, n)
+            out = {
+                key: out[key].at[dest].set(slot[name], mode="drop")
+                for key, name in _OUTCOMES.items()
+            }
             finished = slot["ended"]
             new_index = jnp.where(finished, next_index + jnp.cumsum(finished) - 1, index)
-            new_index = jnp.where(finished & (new_index >= n), n, new_index)
-            next_index = next_index + jnp.sum(finished)
+            new_index = jnp.minimum(new_index, n)
+            next_index = jnp.minimum(next_index + jnp.sum(finished), n)
 
             def reload(args):
                 d2, slot2 = init(take(new_index))
-                # Slots beyond the last spec stay ended.
-                slot2 = dict(slot2, ended=new_index >= n)
+                slot2 = dict(slot2, ended=new_index >= n)  # no spec left: stays ended
 
                 def pick(new, old):
                     mask = finished.reshape(finished.shape + (1,) * (new.ndim - 1))
@@ -320,10 +319,12 @@ class _Program:
                 return jax.tree.map(pick, (d2, slot2), args)
 
             d, slot = jax.lax.cond(jnp.any(finished), reload, lambda a: a, (d, slot))
+            d, slot = jax.lax.fori_loop(0, self.recycle_every, lambda _, c: step(*c), (d, slot))
             return d, slot, new_index, next_index, out
 
         def pending(state):
-            return jnp.any(state[2] < n)
+            _, _, index, next_index, _ = state
+            return jnp.any(index < n) | (next_index < n)
 
         *_, out = jax.lax.while_loop(pending, chunk, state)
         return out
@@ -344,7 +345,6 @@ def run_trials(
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` on MJX, grouped by scene."""
     n = len(specs)
-    results = [None] * n
     inputs_all = _slot_inputs(specs, params, config)
     keys = [
         (scene.SHAPES[int(s)], round(float(z), 9))
@@ -372,7 +372,6 @@ def run_trials(
         out_arrays["start_distance"][rows] = out["start_distance"]
         if progress is not None:
             progress(len(rows))
-    del results
     success = out_arrays["success"]
     reward = trial_reward(
         success,

@@ -5,7 +5,8 @@ board pose, grasp and friction are per trial). Every control period it runs `mj_
 kinematics, mass matrix, bias forces; the force sensor still holds the previous step's reading,
 as on a real robot) on each live slot, computes the torques of all its slots in one batched NumPy
 call of `controller.skill_torque`, then runs `mj_step2`. MuJoCo releases the GIL inside its
-calls, so the threads overlap their physics. A slot whose trial ends takes the next spec from a
+calls, so threads overlap their physics, but the Python part of each step holds the GIL: one
+thread is the default (DEFAULT_THREADS). A slot whose trial ends takes the next spec from a
 shared queue at once, so cost follows the simulated time actually used.
 """
 
@@ -34,9 +35,14 @@ from mjx_peg.trial import (
 )
 
 SLOTS_PER_THREAD = 32
+# One thread by default: measured on 2 cores, a second thread makes the engine slower (32.6k vs
+# 23.4k physics steps/s), because the per-slot Python work (copies, the batched NumPy controller)
+# holds the GIL for ~3/4 of each step and the threads fight over it. Spreading across cores needs
+# worker processes; see BENCHMARKS.md.
+DEFAULT_THREADS = 1
 
 
-def default_threads() -> int:
+def available_cores() -> int:
     """Cores this process may use."""
     try:
         return len(os.sched_getaffinity(0))
@@ -318,7 +324,7 @@ def run_trials(
     threads).
     """
     n = len(specs)
-    threads = max(1, min(threads or default_threads(), n))
+    threads = max(1, min(threads or DEFAULT_THREADS, n))
     slots = slots_per_thread or max(1, min(SLOTS_PER_THREAD, -(-n // threads)))
     queue, results = _Queue(n, progress), _Results(n)
 

@@ -1,0 +1,65 @@
+"""Sim-to-sim check: the same specs and parameters on the mujoco and mjx engines.
+
+    python benchmarks/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25]
+
+Prints the fraction of trials with the same outcome, the median times to complete of the trials
+both engines completed, and the largest final tip distance between the engines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from mjx_peg.baseline import baseline_params
+from mjx_peg.engines import run_trials
+from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.trial import TrialConfig
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--trials", type=int, default=100)
+    p.add_argument("--time-limit", type=float, default=4.0, help="simulated s per trial")
+    p.add_argument("--batch", type=int, default=25, help="mjx slots")
+    p.add_argument("--shapes", default="circle,square,triangle")
+    p.add_argument("--linear-mm", type=float, default=3.0)
+    p.add_argument("--angular-deg", type=float, default=4.0)
+    p.add_argument("--seed", type=int, default=11)
+    args = p.parse_args()
+    task = TaskConfig(
+        shapes=tuple(args.shapes.split(",")),
+        linear_error=args.linear_mm / 1000.0,
+        angular_error=np.deg2rad(args.angular_deg),
+    )
+    specs = sample_trials(task, args.seed, args.trials)
+    config = TrialConfig(time_limit_s=args.time_limit)
+    start = time.perf_counter()
+    cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config)
+    cpu_s = time.perf_counter() - start
+    start = time.perf_counter()
+    acc = run_trials(specs, baseline_params(), engine="mjx", config=config, batch=args.batch)
+    acc_s = time.perf_counter() - start
+    same = cpu.success == acc.success
+    both = cpu.success & acc.success
+    t_cpu, t_acc = np.median(cpu.time_s[both]), np.median(acc.time_s[both])
+    tip_gap = np.linalg.norm(cpu.final_tip_pos - acc.final_tip_pos, axis=1)
+    print(f"mujoco: {cpu.summary()} ({cpu_s:.0f} s wall)")
+    print(f"mjx:    {acc.summary()} ({acc_s:.0f} s wall incl. compile)")
+    print(f"same outcome on {same.sum()}/{len(specs)} = {100 * same.mean():.1f} %")
+    print(
+        f"median time, both succeeded ({both.sum()}): mujoco {t_cpu:.3f} s, mjx {t_acc:.3f} s "
+        f"({100 * (t_acc / t_cpu - 1):+.1f} %)"
+    )
+    print(f"final tip distance between engines: median {1000 * np.median(tip_gap):.2f} mm")
+    per_shape = {}
+    for sid in np.unique(specs.shape_id):
+        rows = specs.shape_id == sid
+        per_shape[int(sid)] = f"{same[rows].sum()}/{rows.sum()}"
+    print("same outcome per shape id:", per_shape)
+
+
+if __name__ == "__main__":
+    main()
