@@ -21,7 +21,13 @@ import mujoco
 import numpy as np
 
 from mjx_peg import scene
-from mjx_peg.controller import make_skill, skill_torque, start_state, wrench_in_goal_frame
+from mjx_peg.controller import (
+    Skill,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
 from mjx_peg.params import ControllerParams
 from mjx_peg.task import TrialSpec
 from mjx_peg.trial import (
@@ -128,7 +134,7 @@ class _Worker:
         self.tare = np.zeros((b, 6))
         self.board_pos, self.size = np.zeros((b, 2)), np.ones(b)
         self.start_distance, self.peak_force = np.ones(b), np.zeros(b)
-        self.step, self.time = np.zeros(b, dtype=np.int64), np.zeros(b)
+        self.step = np.zeros(b, dtype=np.int64)
         # Per-step measurements, written in place by MuJoCo or copied from MjData.
         self.jac = np.zeros((b, 6, 6))
         self.jac_dot = np.zeros((b, 6, 6))
@@ -189,7 +195,6 @@ class _Worker:
         self.start_distance[slot] = np.linalg.norm(tip - destination(s.board_pos[index]))
         self.peak_force[slot] = 0.0
         self.step[slot] = 0
-        self.time[slot] = d.time
         self.current[slot] = (m, d, lay)
         self.spec_index[slot] = index
 
@@ -235,7 +240,7 @@ class _Worker:
             speed_ok = np.all(np.abs(self.qvel) < cfg.max_joint_speed, axis=-1)
             finite = np.isfinite(self.tip_pos).all(-1) & np.isfinite(self.qvel).all(-1)
             # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
-            reset = np.abs(self.sim_time - (self.time + self.step * dt)) > 0.5 * dt
+            reset = np.abs(self.sim_time - self.step * dt) > 0.5 * dt
             unstable = ~(speed_ok & finite) | reset
             ended = success | unstable | (self.step >= max_steps)
             for i in rows[ended[rows]]:
@@ -260,7 +265,7 @@ class _Worker:
             if observer is not None:
                 observer(self, rows, wrench)
             torques = skill_torque(
-                _skill_view(self),
+                Skill(self.goal_pos, self.goal_rot, self.y0, self.k_y, self.d_y, self.compliance),
                 self.basis,
                 self.step * dt,
                 self.tcp_pos,
@@ -300,12 +305,6 @@ class _Worker:
             self.start_distance[slot],
             self.config.reward,
         )
-
-
-def _skill_view(w: _Worker):
-    from mjx_peg.controller import Skill
-
-    return Skill(w.goal_pos, w.goal_rot, w.y0, w.k_y, w.d_y, w.compliance)
 
 
 def run_trials(
