@@ -12,7 +12,6 @@ implementation (the Warp implementation needs a CUDA device and `warp-lang`; see
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from collections.abc import Callable
 
@@ -73,49 +72,6 @@ def step2(m: mjx.Model, d: mjx.Data) -> mjx.Data:
     return mjx.implicit(m, d)
 
 
-@dataclasses.dataclass(frozen=True)
-class _Ids:
-    """Static ids of one scene (plain ints: they are baked into the compiled function)."""
-
-    qpos_adr: tuple
-    tcp: int
-    tcp_body: int
-    ft: int
-    tip: int
-    force_adr: int
-    torque_adr: int
-    board_body: int
-    peg_body: int
-    friction_geoms: tuple
-
-    @classmethod
-    def of(cls, model: mujoco.MjModel) -> _Ids:
-        def obj(kind, name):
-            idx = mujoco.mj_name2id(model, kind, name)
-            assert idx >= 0, f"scene has no {kind.name} named {name!r}"
-            return int(idx)
-
-        site, body = mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY
-        joints = [obj(mujoco.mjtObj.mjOBJ_JOINT, n) for n in scene.JOINT_NAMES]
-        tcp = obj(site, "tcp")
-        sensor = mujoco.mjtObj.mjOBJ_SENSOR
-        return cls(
-            qpos_adr=tuple(int(model.jnt_qposadr[j]) for j in joints),
-            tcp=tcp,
-            tcp_body=int(model.site_bodyid[tcp]),
-            ft=obj(site, "ft"),
-            tip=obj(site, "peg_tip"),
-            force_adr=int(model.sensor_adr[obj(sensor, "ft_force")]),
-            torque_adr=int(model.sensor_adr[obj(sensor, "ft_torque")]),
-            board_body=obj(body, "board"),
-            peg_body=obj(body, "peg"),
-            friction_geoms=tuple(
-                int(g)
-                for g in np.concatenate([scene.peg_geom_ids(model), scene.board_geom_ids(model)])
-            ),
-        )
-
-
 def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig) -> dict:
     """Per-trial arrays the jitted function consumes (NumPy, leading dim = trials)."""
     n = len(specs)
@@ -149,7 +105,7 @@ class _Program:
     """The compiled trial loop for one scene (shape, size)."""
 
     def __init__(self, model: mujoco.MjModel, config: TrialConfig, batch: int, recycle_every: int):
-        self.ids = ids = _Ids.of(model)
+        self.ids = ids = scene.scene_ids(model)
         self.mx = mjx.put_model(model)
         self.config = config
         self.batch = batch
@@ -158,7 +114,7 @@ class _Program:
         self.basis = Basis(*(jnp.asarray(a) for a in basis))
         self.limits = jnp.asarray(scene.TORQUE_LIMITS)
         self.qpos_adr = jnp.asarray(ids.qpos_adr)
-        self.geoms = jnp.asarray(ids.friction_geoms)
+        self.geoms = jnp.asarray(np.concatenate([ids.peg_geoms, ids.board_geoms]))
         self.run = jax.jit(self._run)
 
     # --- one slot -----------------------------------------------------------------------------
@@ -176,16 +132,16 @@ class _Program:
 
     def _sense(self, m, d):
         ids = self.ids
-        tcp_pos = d.site_xpos[ids.tcp]
-        tcp_rot = d.site_xmat[ids.tcp].reshape(3, 3)
-        jacp, jacr = mjx.jac(m, d, tcp_pos, ids.tcp_body)
-        jdp, jdr = jac_dot(m, d, tcp_pos, ids.tcp_body)
+        tcp_pos = d.site_xpos[ids.tcp_site]
+        tcp_rot = d.site_xmat[ids.tcp_site].reshape(3, 3)
+        jacp, jacr = mjx.jac(m, d, tcp_pos, ids.wrist3_body)
+        jdp, jdr = jac_dot(m, d, tcp_pos, ids.wrist3_body)
         jac = jnp.concatenate([jacp.T, jacr.T], axis=0)
         jdot_qdot = jnp.concatenate([jdp.T, jdr.T], axis=0) @ d.qvel
-        force = d.sensordata[ids.force_adr : ids.force_adr + 3]
-        torque = d.sensordata[ids.torque_adr : ids.torque_adr + 3]
-        rot_ft = d.site_xmat[ids.ft].reshape(3, 3)
-        lever = d.site_xpos[ids.ft] - tcp_pos
+        force = d.sensordata[ids.ft_force_adr : ids.ft_force_adr + 3]
+        torque = d.sensordata[ids.ft_torque_adr : ids.ft_torque_adr + 3]
+        rot_ft = d.site_xmat[ids.ft_site].reshape(3, 3)
+        lever = d.site_xpos[ids.ft_site] - tcp_pos
         return tcp_pos, tcp_rot, jac, jdot_qdot, force, torque, rot_ft, lever
 
     def _init(self, inp):
@@ -203,7 +159,7 @@ class _Program:
         y0 = start_state(inp["goal_pos"], inp["goal_rot"], tcp_pos, tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
         skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
-        tip = d.site_xpos[self.ids.tip]
+        tip = d.site_xpos[self.ids.tip_site]
         start_distance = jnp.linalg.norm(tip - destination(inp["board_pos"]))
         slot = dict(
             fields=fields,
@@ -229,7 +185,7 @@ class _Program:
         tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft, lever = self._sense(m, d)
         skill = slot["skill"]
         wrench = wrench_in_goal_frame(force, torque, slot["tare"], rot_ft, lever, skill.goal_rot)
-        tip = d.site_xpos[self.ids.tip]
+        tip = d.site_xpos[self.ids.tip_site]
         step = slot["step"]
         success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height)
         finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))

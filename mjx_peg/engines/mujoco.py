@@ -56,28 +56,12 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-class _Layout:
-    """Ids and addresses of one compiled scene, resolved once."""
-
-    def __init__(self, model: mujoco.MjModel):
-        def obj(kind, name):
-            idx = mujoco.mj_name2id(model, kind, name)
-            assert idx >= 0, f"scene has no {kind.name} named {name!r}"
-            return idx
-
-        joints = [obj(mujoco.mjtObj.mjOBJ_JOINT, n) for n in scene.JOINT_NAMES]
-        self.qpos_adr = np.array([model.jnt_qposadr[j] for j in joints])
-        self.dof_adr = np.array([model.jnt_dofadr[j] for j in joints])
-        assert model.nv == 6 and np.all(self.dof_adr == np.arange(6)), (
-            "the arm must be the only dofs"
-        )
-        self.tcp = obj(mujoco.mjtObj.mjOBJ_SITE, "tcp")
-        self.tcp_body = int(model.site_bodyid[self.tcp])
-        self.ft = obj(mujoco.mjtObj.mjOBJ_SITE, "ft")
-        self.tip = obj(mujoco.mjtObj.mjOBJ_SITE, "peg_tip")
-        self.force_adr = int(model.sensor_adr[obj(mujoco.mjtObj.mjOBJ_SENSOR, "ft_force")])
-        self.torque_adr = int(model.sensor_adr[obj(mujoco.mjtObj.mjOBJ_SENSOR, "ft_torque")])
-        self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
+def _layout(model: mujoco.MjModel) -> scene.SceneIds:
+    """The scene's ids, checked for what this engine assumes (the arm is all the dofs)."""
+    ids = scene.scene_ids(model)
+    assert model.nv == 6 and np.all(ids.dof_adr == np.arange(6)), "the arm must be the only dofs"
+    assert model.site_bodyid[ids.tcp_site] == ids.wrist3_body, "tcp must be on the wrist-3 body"
+    return ids
 
 
 class _Queue:
@@ -152,7 +136,7 @@ class _Worker:
         env = self.envs[slot].get(key)
         if env is None:
             model = copy.deepcopy(scene.load_model(shape, size))
-            env = (model, mujoco.MjData(model), _Layout(model))
+            env = (model, mujoco.MjData(model), _layout(model))
             self.envs[slot][key] = env
         return env
 
@@ -171,13 +155,13 @@ class _Worker:
             d.qfrc_bias[lay.dof_adr] - d.qfrc_passive[lay.dof_adr]
         )  # hold still (gravity compensation) and tare
         mujoco.mj_forward(m, d)
-        self.tare[slot, :3] = d.sensordata[lay.force_adr : lay.force_adr + 3]
-        self.tare[slot, 3:] = d.sensordata[lay.torque_adr : lay.torque_adr + 3]
+        self.tare[slot, :3] = d.sensordata[lay.ft_force_adr : lay.ft_force_adr + 3]
+        self.tare[slot, 3:] = d.sensordata[lay.ft_torque_adr : lay.ft_torque_adr + 3]
         goal_pos, goal_rot = trial_goals(
             s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1], cfg
         )
-        tcp_pos = d.site_xpos[lay.tcp].copy()
-        tcp_rot = d.site_xmat[lay.tcp].reshape(3, 3).copy()
+        tcp_pos = d.site_xpos[lay.tcp_site].copy()
+        tcp_rot = d.site_xmat[lay.tcp_site].reshape(3, 3).copy()
         y0 = start_state(goal_pos[0], goal_rot[0], tcp_pos, tcp_rot)
         p = self.params
         skill = make_skill(
@@ -191,7 +175,7 @@ class _Worker:
         self.y0[slot], self.k_y[slot], self.d_y[slot] = skill.y0, skill.k_y, skill.d_y
         self.compliance[slot] = skill.compliance
         self.board_pos[slot], self.size[slot] = s.board_pos[index], s.size[index]
-        tip = d.site_xpos[lay.tip]
+        tip = d.site_xpos[lay.tip_site]
         self.start_distance[slot] = np.linalg.norm(tip - destination(s.board_pos[index]))
         self.peak_force[slot] = 0.0
         self.step[slot] = 0
@@ -202,21 +186,26 @@ class _Worker:
         """mj_step1 and copy what the controller needs into the batch arrays."""
         m, d, lay = self.current[slot]
         mujoco.mj_step1(m, d)
-        mujoco.mj_jacSite(m, d, self.jac[slot, :3], self.jac[slot, 3:], lay.tcp)
-        self.tcp_pos[slot] = d.site_xpos[lay.tcp]
+        mujoco.mj_jacSite(m, d, self.jac[slot, :3], self.jac[slot, 3:], lay.tcp_site)
+        self.tcp_pos[slot] = d.site_xpos[lay.tcp_site]
         mujoco.mj_jacDot(
-            m, d, self.jac_dot[slot, :3], self.jac_dot[slot, 3:], self.tcp_pos[slot], lay.tcp_body
+            m,
+            d,
+            self.jac_dot[slot, :3],
+            self.jac_dot[slot, 3:],
+            self.tcp_pos[slot],
+            lay.wrist3_body,
         )
         mujoco.mj_fullM(m, d, self.mass[slot])
-        self.tcp_rot[slot] = d.site_xmat[lay.tcp].reshape(3, 3)
-        self.ft_rot[slot] = d.site_xmat[lay.ft].reshape(3, 3)
-        self.ft_lever[slot] = d.site_xpos[lay.ft] - self.tcp_pos[slot]
-        self.tip_pos[slot] = d.site_xpos[lay.tip]
+        self.tcp_rot[slot] = d.site_xmat[lay.tcp_site].reshape(3, 3)
+        self.ft_rot[slot] = d.site_xmat[lay.ft_site].reshape(3, 3)
+        self.ft_lever[slot] = d.site_xpos[lay.ft_site] - self.tcp_pos[slot]
+        self.tip_pos[slot] = d.site_xpos[lay.tip_site]
         self.qvel[slot] = d.qvel
         self.bias[slot] = d.qfrc_bias - d.qfrc_passive  # h: Coriolis, gravity, joint damping
         sd = d.sensordata
-        self.force[slot] = sd[lay.force_adr : lay.force_adr + 3]
-        self.torque[slot] = sd[lay.torque_adr : lay.torque_adr + 3]
+        self.force[slot] = sd[lay.ft_force_adr : lay.ft_force_adr + 3]
+        self.torque[slot] = sd[lay.ft_torque_adr : lay.ft_torque_adr + 3]
         self.sim_time[slot] = d.time
 
     def run(self, queue: _Queue, results: _Results, observer=None) -> None:
