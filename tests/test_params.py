@@ -30,10 +30,10 @@ def test_names_units_and_count():
 
 
 def test_ranges_from_the_docstring():
-    assert BOUND[0, 0] == 1e-3 and BOUND[5, 5] == 0.05
-    np.testing.assert_allclose(BOUND[0, 1], 5e-4)
-    np.testing.assert_allclose(BOUND[3, 4], 0.025)
-    np.testing.assert_allclose(BOUND[0, 3], 0.5 * np.sqrt(1e-3 * 0.05))
+    assert BOUND[0, 0] == 2e-3 and BOUND[5, 5] == 0.1
+    np.testing.assert_allclose(BOUND[0, 1], 1e-3)
+    np.testing.assert_allclose(BOUND[3, 4], 0.05)
+    np.testing.assert_allclose(BOUND[0, 3], 0.5 * np.sqrt(2e-3 * 0.1))
     np.testing.assert_allclose(BOUND, BOUND.T)
 
 

@@ -1,0 +1,109 @@
+"""What the policy sees of a trial: the estimated hole pose, the shape and the size.
+
+The paper's network maps the hole's estimated pose, shape and size to the 38 controller numbers
+(section 4.3). Everything here is what the robot knows before it moves: the vision estimate of
+the hole (never the true pose) and the peg it holds. Features are scaled to O(1) by fixed,
+documented constants, so a value never seen in training (a 60 mm peg, a triangle) is a bounded
+input rather than a division by a near-zero running std:
+
+    0-1   (hole_est_x - 0.4 m) / 0.3 m, hole_est_y / 0.3 m   (the default workspace sector spans
+          x 0.18-0.65 m, y +-0.56 m: inputs within about +-2)
+    2-3   cos(n yaw), sin(n yaw)   yaw of the estimated hole, n = the shape's rotational symmetry
+                                   (square 4, triangle 3; circle 0, i.e. the constant (1, 0))
+    4-6   one-hot shape            circle, square, triangle (task.SHAPES order)
+    7     (S - 0.05 m) / 0.01 m    characteristic size: 25 mm -> -2.5, 50 mm -> 0, 60 mm -> 1
+
+Encoding the yaw at the shape's symmetry makes poses that are physically the same (a square
+turned by 90 deg) the same input, and keeps the input continuous where the board yaw wraps.
+
+Written over the array-API namespace of the inputs (NumPy on the robot, jax.numpy in training);
+imports neither numpy nor jax at module level.
+"""
+
+from __future__ import annotations
+
+from mjx_peg.rotations import namespace_of
+
+SHAPE_NAMES = ("circle", "square", "triangle")  # = task.SHAPES; index = TrialSpec.shape_id
+SYMMETRY = (0, 4, 3)  # rotational symmetry order per shape (0: yaw does not matter)
+WORKSPACE_CENTRE = (0.4, 0.0)  # m
+POSITION_SCALE = 0.3  # m
+SIZE_CENTRE = 0.05  # m, the training size
+SIZE_SCALE = 0.01  # m
+
+OBS_NAMES: tuple[str, ...] = (
+    "hole_x",
+    "hole_y",
+    "cos_n_yaw",
+    "sin_n_yaw",
+    "is_circle",
+    "is_square",
+    "is_triangle",
+    "size",
+)
+OBS_SIZE = len(OBS_NAMES)
+
+
+def observe(shape_id, size, hole_est_pos, hole_est_yaw):
+    """(..., 8) float observation from (...,) shape ids, sizes (m), (..., 2) positions, yaws."""
+    xp = namespace_of(size, hole_est_pos, hole_est_yaw)
+    dtype = hole_est_pos.dtype
+    shape_id = xp.asarray(shape_id)
+    one_hot = xp.stack([shape_id == i for i in range(len(SHAPE_NAMES))], axis=-1)
+    order = xp.asarray(SYMMETRY, dtype=dtype)[shape_id]
+    angle = order * xp.asarray(hole_est_yaw, dtype=dtype)
+    centre = xp.asarray(WORKSPACE_CENTRE, dtype=dtype)
+    return xp.concat(
+        [
+            (hole_est_pos - centre) / POSITION_SCALE,
+            xp.stack([xp.cos(angle), xp.sin(angle)], axis=-1),
+            xp.astype(one_hot, dtype),
+            ((xp.asarray(size, dtype=dtype) - SIZE_CENTRE) / SIZE_SCALE)[..., None],
+        ],
+        axis=-1,
+    )
+
+
+def observe_specs(specs):
+    """(B, 8) NumPy observation of a `task.TrialSpec`."""
+    return observe(specs.shape_id, specs.size, specs.hole_est_pos, specs.hole_est_yaw)
+
+
+# What the critic also sees in training (never the policy, never the robot): the trial's true
+# errors and friction, which decide most of a trial's outcome. A value baseline that knows them
+# removes that spread from the advantages (an asymmetric actor-critic), so the policy gradient
+# sees the effect of its 38 numbers rather than the luck of the draw.
+PRIVILEGED_NAMES: tuple[str, ...] = (
+    "loc_dx",
+    "loc_dy",
+    "loc_dyaw",
+    "grasp_dz",
+    "grasp_tilt_x",
+    "grasp_tilt_y",
+    "lateral_error",
+    "friction",
+)
+LINEAR_SCALE = 0.008  # m, the paper's largest linear error range
+ANGULAR_SCALE = 0.2  # rad, about its 12 deg angular range
+
+
+def privileged(loc_error, grasp_error, friction):
+    """(..., 8) critic-only features from the true (..., 3) errors and (...,) friction."""
+    xp = namespace_of(loc_error, grasp_error, friction)
+    scale = xp.asarray([LINEAR_SCALE, LINEAR_SCALE, ANGULAR_SCALE], dtype=loc_error.dtype)
+    grasp_scale = xp.asarray([LINEAR_SCALE, ANGULAR_SCALE, ANGULAR_SCALE], dtype=loc_error.dtype)
+    lateral = xp.linalg.vector_norm(loc_error[..., :2], axis=-1) / LINEAR_SCALE
+    return xp.concat(
+        [
+            loc_error / scale,
+            grasp_error / grasp_scale,
+            lateral[..., None],
+            ((friction - 0.55) / 0.35)[..., None],
+        ],
+        axis=-1,
+    )
+
+
+def privileged_specs(specs):
+    """(B, 8) NumPy critic-only features of a `task.TrialSpec`."""
+    return privileged(specs.loc_error, specs.grasp_error, specs.friction)

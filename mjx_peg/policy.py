@@ -1,0 +1,167 @@
+"""The portable policy export: `policy.npz` + `manifest.json`, loaded with NumPy alone.
+
+A run directory's policy is plain arrays (`policy.npz`, read with allow_pickle=False) and a JSON
+manifest that says what they mean: schema version, observation names and normalization, layer
+shapes, activation, the 38 parameter names and their physical ranges, and the config that made
+it. `load_policy` checks all of it and raises `PolicyError` (one line) on anything missing,
+truncated or inconsistent. No JAX is imported here: the real robot runs this.
+
+    policy = load_policy("runs/quick")
+    vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from mjx_peg import observation, params, policy_net
+
+SCHEMA = "mjx-peg-policy"
+SCHEMA_VERSION = 1
+POLICY_FILE = "policy.npz"
+MANIFEST_FILE = "manifest.json"
+ACTIVATION = "swish"
+
+
+class PolicyError(ValueError):
+    """A policy file is missing, truncated or inconsistent with its manifest."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Policy:
+    """A deterministic policy: observation -> action -> 38 physical controller numbers."""
+
+    layers: tuple[tuple[np.ndarray, np.ndarray], ...]
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    manifest: dict
+
+    def act(self, obs) -> np.ndarray:
+        """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
+        return policy_net.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))
+
+    def controller_vectors(self, specs) -> np.ndarray:
+        """(B, 38) physical parameter vectors for the trials of a `TrialSpec`."""
+        obs = observation.observe_specs(specs)
+        return np.asarray(policy_net.controller_vector(self.act(obs)), dtype=np.float64)
+
+
+def _ranges_json(ranges: params.ParamRanges) -> dict:
+    return {
+        "k_t": list(ranges.k_t),
+        "k_theta": list(ranges.k_theta),
+        "compliance_bound": [list(row) for row in ranges.compliance_bound()],
+        "compliance_diagonal": "C[i,i] = bound * sigmoid(a)",
+        "compliance_off_diagonal": "C[i,j] = bound * tanh(a)",
+        "stiffness": "k = exp(log lo + (log hi - log lo) * sigmoid(a))",
+    }
+
+
+def save_policy(
+    run_dir,
+    layers,
+    obs_mean,
+    obs_std,
+    config: dict,
+    extra: dict | None = None,
+) -> Path:
+    """Write `policy.npz` + `manifest.json` into run_dir (atomically: temp files, then rename)."""
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    arrays = {
+        "obs_mean": np.asarray(obs_mean, np.float32),
+        "obs_std": np.asarray(obs_std, np.float32),
+    }
+    for i, (kernel, bias) in enumerate(layers):
+        arrays[f"layer{i}_kernel"] = np.asarray(kernel, np.float32)
+        arrays[f"layer{i}_bias"] = np.asarray(bias, np.float32)
+    manifest = {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "observation": {
+            "names": list(observation.OBS_NAMES),
+            "normalization": "(obs - obs_mean) / obs_std, arrays in policy.npz",
+            "definition": "mjx_peg/observation.py",
+        },
+        "network": {
+            "layers": [list(np.shape(k)) for k, _ in layers],
+            "activation": ACTIVATION,
+            "output": "mean action; deterministic policy (Brax PPO, normal distribution)",
+        },
+        "action": {
+            "size": params.N_PARAMS,
+            "param_names": list(params.PARAM_NAMES),
+            "ranges": _ranges_json(params.DEFAULT_RANGES),
+        },
+        "config": config,
+        **(extra or {}),
+    }
+    tmp_npz = run_dir / (POLICY_FILE + ".tmp.npz")
+    np.savez(tmp_npz, **arrays)
+    os.replace(tmp_npz, run_dir / POLICY_FILE)
+    tmp_json = run_dir / (MANIFEST_FILE + ".tmp")
+    tmp_json.write_text(json.dumps(manifest, indent=2) + "\n")
+    os.replace(tmp_json, run_dir / MANIFEST_FILE)
+    return run_dir / POLICY_FILE
+
+
+def load_policy(path) -> Policy:
+    """Load a policy from a run directory (or its policy.npz); PolicyError on any defect."""
+    path = Path(path)
+    run_dir = path.parent if path.name == POLICY_FILE else path
+    npz_path, manifest_path = run_dir / POLICY_FILE, run_dir / MANIFEST_FILE
+    if not run_dir.is_dir():
+        raise PolicyError(f"{run_dir} is not a directory")
+    for f in (npz_path, manifest_path):
+        if not f.is_file():
+            raise PolicyError(f"{run_dir} holds no {f.name}: not a run directory with a policy")
+    try:
+        manifest = json.loads(manifest_path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise PolicyError(f"{manifest_path} is not valid JSON ({e})") from None
+    if not isinstance(manifest, dict) or manifest.get("schema") != SCHEMA:
+        raise PolicyError(f"{manifest_path} is not an mjx-peg policy manifest")
+    if manifest.get("schema_version") != SCHEMA_VERSION:
+        raise PolicyError(
+            f"{manifest_path} has schema version {manifest.get('schema_version')!r}; "
+            f"this mjx-peg reads version {SCHEMA_VERSION}"
+        )
+    try:
+        with np.load(npz_path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise PolicyError(f"{npz_path} is corrupt or truncated ({type(e).__name__}: {e})") from None
+    try:
+        shapes = [tuple(s) for s in manifest["network"]["layers"]]
+        names = manifest["observation"]["names"]
+        if names != list(observation.OBS_NAMES):
+            raise PolicyError(f"{manifest_path} observation {names} is not {observation.OBS_NAMES}")
+        if manifest["network"]["activation"] != ACTIVATION:
+            raise PolicyError(f"{manifest_path}: unsupported activation")
+        layers = tuple(
+            (arrays[f"layer{i}_kernel"], arrays[f"layer{i}_bias"]) for i in range(len(shapes))
+        )
+        obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
+    except (KeyError, TypeError) as e:
+        raise PolicyError(
+            f"{run_dir}: policy.npz and manifest.json disagree (missing {e})"
+        ) from None
+    width = observation.OBS_SIZE
+    for i, ((kernel, bias), shape) in enumerate(zip(layers, shapes, strict=True)):
+        if kernel.shape != shape or bias.shape != (shape[1],) or shape[0] != width:
+            raise PolicyError(f"{npz_path}: layer {i} has shape {kernel.shape}, expected {shape}")
+        width = shape[1]
+    if width != params.N_PARAMS:
+        raise PolicyError(f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS}")
+    if obs_mean.shape != (observation.OBS_SIZE,) or obs_std.shape != (observation.OBS_SIZE,):
+        raise PolicyError(f"{npz_path}: observation normalization has the wrong shape")
+    everything = [obs_mean, obs_std] + [w for layer in layers for w in layer]
+    if not all(np.all(np.isfinite(a)) for a in everything) or np.any(obs_std <= 0):
+        raise PolicyError(f"{npz_path} holds NaN, infinite or non-positive normalization values")
+    return Policy(layers, obs_mean, obs_std, manifest)

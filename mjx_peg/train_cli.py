@@ -1,0 +1,133 @@
+"""`python train.py`: learn the 38 controller numbers with Brax PPO (see train_config.py presets).
+
+    python train.py                                  # quick preset, CPU, a few minutes
+    python train.py --preset paper --out runs/paper  # the paper's training conditions
+    python train.py --preset transfer --init-from runs/paper --out runs/transfer
+    python train.py --preset paper --out runs/paper  # after a crash or kill: resumes
+
+Bad input exits with status 2 and one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from mjx_peg.engines import ENGINES
+
+PROG = "train.py"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, no usage dump
+        raise SystemExit(_fail(message))
+
+
+def _fail(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def parser() -> argparse.ArgumentParser:
+    from mjx_peg.train_config import PRESETS
+
+    p = _Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--preset", default="quick", choices=sorted(PRESETS), help="default: quick")
+    p.add_argument("--out", help="run directory (default: runs/PRESET)")
+    p.add_argument("--engine", choices=ENGINES, help="physics engine (preset: mujoco)")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--num-envs", type=int, help="trials per iteration")
+    p.add_argument("--trials", type=int, help="training budget in trials")
+    p.add_argument("--time-limit", type=float, help="seconds per training trial")
+    p.add_argument("--init-from", help="run directory whose networks start this run")
+    p.add_argument("--force", action="store_true", help="overwrite a finished run in --out")
+    p.add_argument("--checkpoint-every", type=float, default=60.0, help="seconds (default 60)")
+    p.add_argument("--workers", type=int, help="CPU engine worker processes (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--distributed",
+        action="store_true",
+        help="join a multi-host run through jax.distributed (JAX_COORDINATOR_ADDRESS, "
+        "JAX_NUM_PROCESSES, JAX_PROCESS_ID or the cluster's own environment)",
+    )
+    return p
+
+
+def resolve_config(args):
+    """The preset with the command line's overrides applied (ValueError on bad values)."""
+    from mjx_peg.policy import load_policy
+    from mjx_peg.train_config import PRESETS
+
+    overrides = {
+        "engine": args.engine,
+        "seed": args.seed,
+        "num_envs": args.num_envs,
+        "trials": args.trials,
+        "time_limit_s": args.time_limit,
+        "init_from": args.init_from,
+    }
+    config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
+    if args.preset == "transfer" and not config.init_from:
+        raise ValueError("--preset transfer needs --init-from RUN_DIR (a finished run)")
+    if config.init_from:
+        load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
+        config = config.replace(init_from=os.path.abspath(config.init_from))
+    return config
+
+
+def quiet_brax_import() -> None:
+    """Import brax with stdout muted: it imports mujoco.mjx, whose Warp backend prints "Failed
+    to import warp" on every machine without Warp (all CPU ones)."""
+    import contextlib
+    import io
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        import brax.envs  # noqa: F401
+
+
+def join_distributed() -> None:
+    """jax.distributed.initialize from JAX_COORDINATOR_ADDRESS / JAX_NUM_PROCESSES /
+    JAX_PROCESS_ID when set, else from the cluster's environment (SLURM, ...)."""
+    import jax
+
+    def number(name):
+        value = os.environ.get(name)
+        try:
+            return None if value is None else int(value)
+        except ValueError:
+            raise ValueError(f"{name}={value!r} is not an integer") from None
+
+    try:
+        jax.distributed.initialize(
+            num_processes=number("JAX_NUM_PROCESSES"), process_id=number("JAX_PROCESS_ID")
+        )
+    except (RuntimeError, ValueError) as e:
+        raise ValueError(f"--distributed: could not join the run ({e})") from None
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        config = resolve_config(args)
+        if args.distributed:
+            join_distributed()
+        quiet_brax_import()
+        from mjx_peg.trainer import train
+
+        options = {} if args.workers is None else {"workers": args.workers}
+        summary = train(
+            config,
+            args.out or os.path.join("runs", args.preset),
+            force=args.force,
+            checkpoint_every_s=args.checkpoint_every,
+            progress=not args.no_progress,
+            engine_options=options,
+        )
+    except ValueError as e:
+        return _fail(str(e))
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; rerun the same command to resume", file=sys.stderr)
+        return 130
+    print(summary.line())
+    return 0

@@ -1,0 +1,251 @@
+"""`train(config, out)`: run (or resume) a training job in a run directory and export it.
+
+The host loop around `training.make_iteration`: restore the last Orbax checkpoint if the run was
+interrupted, step iterations with a progress bar (trials/s, ETA), append metrics.csv and
+trials.csv, checkpoint every `checkpoint_every_s` seconds and at the end, then export
+`policy.npz` + `manifest.json` and draw `training_curve.png`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import jax.experimental.multihost_utils
+import numpy as np
+import orbax.checkpoint as ocp
+
+from mjx_peg import training
+from mjx_peg.curves import plot_training_curve, running_mean
+from mjx_peg.env import InsertionEnv
+from mjx_peg.policy import save_policy
+from mjx_peg.run_dir import RunDir
+from mjx_peg.train_config import TrainConfig
+
+
+@dataclass(frozen=True)
+class TrainSummary:
+    run_dir: Path
+    trials: int
+    iterations: int
+    wall_s: float
+    final_mean_return: float  # running mean over the last 100 trials (paper scale)
+    final_success_rate: float  # over the last iteration's trials
+    finished: bool
+
+    def line(self) -> str:
+        state = "finished" if self.finished else "stopped"
+        return (
+            f"{state}: {self.trials} trials in {self.iterations} iterations, "
+            f"{self.wall_s / 60:.1f} min; mean return of the last 100 trials "
+            f"{self.final_mean_return:.0f} / 38000, last-iteration success "
+            f"{100 * self.final_success_rate:.1f} %; {self.run_dir}"
+        )
+
+
+def _flat(state) -> dict[str, np.ndarray]:
+    """The state's leaves as host NumPy arrays, keyed by position.
+
+    Saved this way rather than as the TrainingState itself: some leaves (Brax's UInt64 step
+    count) turn themselves back into device arrays, which Orbax refuses to write from several
+    processes; plain NumPy leaves work with one process or many.
+    """
+    return {f"{i:03d}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(state))}
+
+
+def _save(manager: ocp.CheckpointManager, state: training.TrainingState) -> None:
+    manager.save(int(state.iteration), args=ocp.args.StandardSave(_flat(state)))
+    manager.wait_until_finished()
+
+
+def _restore(manager: ocp.CheckpointManager, template: training.TrainingState, step=None):
+    step = manager.latest_step() if step is None else step
+    abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(template))
+    flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
+    leaves = [np.asarray(flat[k]) for k in sorted(flat)]
+    return jax.tree.unflatten(jax.tree.structure(template), leaves)
+
+
+def _load_init(config: TrainConfig, template: training.TrainingState) -> training.TrainingState:
+    """Start from another run's networks and observation statistics (fresh optimizer)."""
+    source = RunDir(config.init_from)
+    if not source.path.is_dir():
+        raise ValueError(f"--init-from {source.path} is not a directory")
+    other = source.read_config()
+    if other.policy_hidden != config.policy_hidden or other.value_hidden != config.value_hidden:
+        raise ValueError(
+            f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
+            f"this run {config.policy_hidden}/{config.value_hidden}"
+        )
+    manager = source.checkpoints()
+    if manager.latest_step() is None:
+        raise ValueError(f"--init-from {source.path} holds no checkpoint")
+    restored = _restore(manager, training.init_state(other, training.make_networks(other)))
+    return template.replace(
+        params=restored.params,
+        normalizer_params=restored.normalizer_params,
+        optimizer_state=training.make_optimizer(config).init(restored.params),
+    )
+
+
+def _export(run: RunDir, config: TrainConfig, state: training.TrainingState, finished: bool):
+    norm = state.normalizer_params
+    save_policy(
+        run.path,
+        training.policy_layers(state.params),
+        np.asarray(norm.mean["state"]),
+        np.asarray(norm.std["state"]),
+        config.to_json(),
+        extra={
+            "finished": finished,
+            "trials": int(state.trials),
+            "wall_s": float(state.wall_s),
+            "trainer": "brax PPO (mjx_peg/training.py)",
+        },
+    )
+    plot_training_curve(run.trials_path, run.curve_path, title=f"{config.preset}: {run.path.name}")
+
+
+def train(
+    config: TrainConfig,
+    out,
+    force: bool = False,
+    checkpoint_every_s: float = 60.0,
+    progress: bool = True,
+    stop_after_iterations: int | None = None,
+    engine_options: dict | None = None,
+) -> TrainSummary:
+    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests)."""
+    devices = jax.device_count()
+    if config.num_envs % (devices * config.num_minibatches):
+        raise ValueError(
+            f"--num-envs {config.num_envs} must be a multiple of {devices} devices x "
+            f"{config.num_minibatches} minibatches"
+        )
+    run = RunDir(out)
+    # With jax.distributed every process runs this loop on the same (shared) run directory;
+    # process 0 writes the files, all take part in Orbax's checkpoint saves.
+    primary = jax.process_index() == 0
+    resume = run.prepare(config, force) if primary else True
+    if jax.process_count() > 1:
+        jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
+    env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options)
+    state = training.init_state(config, training.make_networks(config))
+    manager = run.checkpoints()
+    if resume and manager.latest_step() is not None:
+        state = _restore(manager, state)
+        if primary:
+            run.truncate_tables(int(state.trials))
+    else:
+        if config.init_from:
+            state = _load_init(config, state)
+        if primary:
+            run.start_tables()
+    step = training.make_iteration(env, config)
+    replicated = training.replicate(state)
+    wall0 = float(state.wall_s)
+    start = time.monotonic()
+    last_save = start
+    done_iterations = 0
+    total = config.iterations * config.num_envs
+    bar = None
+    if progress and primary:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, initial=int(state.trials), unit="trial", dynamic_ncols=True)
+    last = {"success": np.zeros(1), "return": np.zeros(1)}
+    recent = np.zeros(0)
+    try:
+        while int(state.iteration) < config.iterations:
+            t0 = time.monotonic()
+            replicated, trials, metrics = step(replicated)
+            # [local devices, all devices, trials per device]: every local copy is the same
+            trials = {k: v.reshape(-1) for k, v in training.unreplicate(trials).items()}
+            metrics = training.unreplicate(metrics)
+            state = training.unreplicate(replicated)
+            now = time.monotonic()
+            wall = wall0 + now - start
+            state = state.replace(wall_s=np.asarray(wall, np.float32))
+            n = int(state.trials)
+            first = n - config.num_envs
+            succ = trials["success"] > 0.5
+            times = trials["time_s"][succ]
+            row = (
+                [
+                    int(state.iteration),
+                    n,
+                    f"{trials['return'].mean():.2f}",
+                    f"{succ.mean():.4f}",
+                    f"{times.mean():.4f}" if times.size else "",
+                    f"{(trials['unstable'] > 0.5).mean():.4f}",
+                    f"{wall:.2f}",
+                    f"{config.num_envs / (now - t0):.2f}",
+                    f"{float(metrics['policy_loss']):.5g}",
+                    f"{float(metrics['v_loss']):.5g}",
+                    f"{float(metrics['entropy_loss']):.5g}",
+                    f"{float(metrics['kl_mean']):.5g}",
+                    f"{float(metrics['policy_dist_mean_std']):.5g}",
+                ],
+                [
+                    [first + i, f"{r:.2f}", int(s), f"{t:.4f}" if s else ""]
+                    for i, (r, s, t) in enumerate(
+                        zip(trials["return"], succ, trials["time_s"], strict=True)
+                    )
+                ],
+            )
+            if primary:
+                run.append(*row)
+            last = trials
+            recent = np.concatenate([recent, trials["return"]])[-100:]
+            finished = int(state.iteration) >= config.iterations
+            if finished or now - last_save >= checkpoint_every_s:
+                _save(manager, state)
+                last_save = time.monotonic()
+            if bar is not None:
+                bar.update(config.num_envs)
+                bar.set_postfix_str(
+                    f"success {100 * succ.mean():.0f}%, return {trials['return'].mean():.0f}"
+                )
+            done_iterations += 1
+            if stop_after_iterations is not None and done_iterations >= stop_after_iterations:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+        manager.close()
+    finished = int(state.iteration) >= config.iterations
+    if finished and primary:
+        _export(run, config, state, finished=True)
+    if recent.size == 0:
+        from mjx_peg.run_dir import read_table
+
+        recent = np.asarray(read_table(run.trials_path)["return"][-100:])
+    return TrainSummary(
+        run_dir=run.path,
+        trials=int(state.trials),
+        iterations=int(state.iteration),
+        wall_s=float(state.wall_s),
+        final_mean_return=float(running_mean(recent, 100)[-1]) if recent.size else math.nan,
+        final_success_rate=float(np.mean(last["success"])),
+        finished=finished,
+    )
+
+
+def load_state(run_dir) -> tuple[TrainConfig, training.TrainingState]:
+    """The config and the latest checkpointed TrainingState of a run directory."""
+    run = RunDir(run_dir)
+    config = run.read_config()
+    manager = run.checkpoints()
+    try:
+        if manager.latest_step() is None:
+            raise ValueError(f"{run.path} holds no checkpoint")
+        template = training.init_state(config, training.make_networks(config))
+        return config, _restore(manager, template)
+    finally:
+        manager.close()
+
+
+__all__ = ["InsertionEnv", "TrainSummary", "load_state", "train"]
