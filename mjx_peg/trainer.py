@@ -81,9 +81,12 @@ def _load_init(config: TrainConfig, template: training.TrainingState) -> trainin
             f"this run {config.policy_hidden}/{config.value_hidden}"
         )
     manager = source.checkpoints()
-    if manager.latest_step() is None:
-        raise ValueError(f"--init-from {source.path} holds no checkpoint")
-    restored = _restore(manager, training.init_state(other, training.make_networks(other)))
+    try:
+        if manager.latest_step() is None:
+            raise ValueError(f"--init-from {source.path} holds no checkpoint")
+        restored = _restore(manager, training.init_state(other, training.make_networks(other)))
+    finally:
+        manager.close()
     return template.replace(
         params=restored.params,
         normalizer_params=restored.normalizer_params,

@@ -90,3 +90,75 @@ def test_engines_agree():
     ratio = np.median(acc.time_s[both]) / np.median(cpu.time_s[both])
     assert abs(ratio - 1.0) < 0.1
     assert not acc.unstable.any()
+
+
+def _mixed_specs(n, seed):
+    """Every shape at two sizes, errors large enough that some trials fail."""
+    config = TaskConfig(
+        shapes=("circle", "square", "triangle"),
+        sizes=(0.05, 0.06),
+        linear_error=0.004,
+        angular_error=np.deg2rad(6.0),
+    )
+    return sample_trials(config, seed, n)
+
+
+def test_results_do_not_depend_on_workers():
+    """One process or two: bit-identical results, progress for every trial, the pool reused."""
+    from mjx_peg.engines import _pool
+
+    specs = _mixed_specs(12, seed=6)
+    params = np.tile(baseline_params(), (12, 1))
+    params[5, :2] = 1e9  # one trial blows up
+    config = TrialConfig(time_limit_s=1.0)
+    local = run_trials(specs, params, engine="mujoco", config=config, workers=1)
+    counts = []
+    pooled = run_trials(
+        specs, params, engine="mujoco", config=config, workers=2, slots_per_thread=3,
+        progress=counts.append,
+    )  # fmt: skip
+    assert sum(counts) == 12
+    assert local.unstable[5] and 0 < local.success.sum() < 12, local.summary()
+    for name, value in local.to_arrays().items():
+        np.testing.assert_array_equal(getattr(pooled, name), value, err_msg=name)
+    pids = [w.proc.pid for w in _pool._POOL.workers]
+    again = run_trials(specs, params, engine="mujoco", config=config, workers=2)
+    assert [w.proc.pid for w in _pool._POOL.workers] == pids
+    np.testing.assert_array_equal(again.final_tip_pos, local.final_tip_pos)
+
+
+def test_dead_worker_is_one_clear_error():
+    import os
+    import signal
+
+    from mjx_peg.engines import _pool
+
+    specs = _mixed_specs(8, seed=7)
+    params = np.tile(baseline_params(), (8, 1))
+    params[0, :2] = 1e9  # ends at once, so progress is called while the others run
+    config = TrialConfig(time_limit_s=3.0)
+    run_trials(specs.take([1, 2]), params[1:3], engine="mujoco", config=config, workers=2)
+
+    def kill_a_worker(count):
+        os.kill(_pool._POOL.workers[1].proc.pid, signal.SIGKILL)
+
+    with pytest.raises(RuntimeError, match="worker process .* died"):
+        run_trials(specs, params, engine="mujoco", config=config, workers=2, progress=kill_a_worker)
+    # The pool is started anew on the next call.
+    result = run_trials(specs.take([0, 1]), params[:2], engine="mujoco", config=config, workers=2)
+    assert result.unstable[0]
+
+
+def test_workers_never_import_jax():
+    """A worker runs `_pool.serve`, which imports only these modules (and NumPy, MuJoCo)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; import mjx_peg.engines._pool, mjx_peg.engines.mujoco; "
+        "sys.exit(any(m == 'jax' or m.startswith('jax.') for m in sys.modules))"
+    )
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+    with pytest.raises(ValueError, match="observer"):
+        run_trials(_specs("square", 2, seed=8), baseline_params(), engine="mujoco",
+                   observer=lambda *a: None, workers=2)  # fmt: skip

@@ -1,7 +1,7 @@
 """Run trials on either physics engine: `run_trials(specs, params, engine=...)`.
 
-`mujoco`: C MuJoCo on CPU threads (the default without an accelerator). `mjx`: the whole trial
-jitted and vmapped in MJX (GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator.
+`mujoco`: C MuJoCo on CPU worker processes (the default without an accelerator). `mjx`: the
+whole trial jitted and vmapped in MJX (GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator.
 The engines are imported lazily so that the CPU engine never pays for importing JAX.
 """
 
@@ -41,7 +41,8 @@ def run_trials(
     """Run every trial in `specs` and return the results in spec order.
 
     params: `ControllerParams` (batched or not) or physical 38-vectors, shape (38,) or (B, 38).
-    engine_options: `threads`, `slots_per_thread` (mujoco); `batch`, `recycle_every` (mjx).
+    engine_options: `workers` (processes, default every core), `threads`, `slots_per_thread`
+    (mujoco); `batch`, `recycle_every` (mjx).
     """
     name = resolve_engine(engine)
     if not isinstance(specs, TrialSpec):

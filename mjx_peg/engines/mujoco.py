@@ -1,33 +1,35 @@
-"""The CPU engine: C MuJoCo on a pool of threads, the controller batched in NumPy.
+"""The CPU engine: C MuJoCo with the controller batched in NumPy, one batch per core.
 
-Each worker thread owns `slots` environments (one MjModel copy and MjData per slot and scene, so
-board pose, grasp and friction are per trial). Every control period it runs `mj_step1` (fresh
-kinematics, mass matrix, bias forces; the force sensor still holds the previous step's reading,
-as on a real robot) on each live slot, computes the torques of all its slots in one batched NumPy
-call of `controller.skill_torque`, then runs `mj_step2`. MuJoCo releases the GIL inside its
-calls, so threads overlap their physics, but the Python part of each step holds the GIL: one
-thread is the default (DEFAULT_THREADS). A slot whose trial ends takes the next spec from a
-shared queue at once, so cost follows the simulated time actually used.
+A batch (`_Batch`) steps up to `slots` trials together in one thread. Every control period it
+runs `mj_step1` on each live trial (fresh kinematics, mass matrix, bias forces; the force sensor
+still holds the previous step's reading, as on a real robot), copies what the controller needs
+into preallocated batch arrays, computes all the torques in one batched NumPy call of
+`controller.skill_torque`, then runs `mj_step2`. Live trials occupy rows [0, n) of the batch, so
+the controller sees only them; a row whose trial ends takes the next trial at once, so cost
+follows the simulated time actually used.
+
+The Python part of a step holds the GIL, so threads cannot share out the cores: `workers`
+processes (`_pool.py`, started once and reused) each run a batch; `workers=1` runs in the calling
+process. A trial's arithmetic does not depend on its batch, row or process, so results are
+bit-identical whatever `workers`, `threads` and `slots_per_thread`. Environments (a private model
+copy and MjData per scene) are pooled and reused across trials and calls.
 """
 
 from __future__ import annotations
 
-import copy
+import collections
 import os
 import threading
 from collections.abc import Callable
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from mjx_peg import scene
-from mjx_peg.controller import (
-    Skill,
-    make_skill,
-    skill_torque,
-    start_state,
-    wrench_in_goal_frame,
-)
+from mjx_peg.controller import Skill, make_skill, skill_torque, start_state, wrench_in_goal_frame
+from mjx_peg.engines import _pool
+from mjx_peg.engines._pool import RESULT_DTYPE, to_result
 from mjx_peg.params import ControllerParams
 from mjx_peg.task import TrialSpec
 from mjx_peg.trial import (
@@ -40,12 +42,11 @@ from mjx_peg.trial import (
     trial_reward,
 )
 
-SLOTS_PER_THREAD = 32
-# One thread by default: measured on 2 cores, a second thread makes the engine slower (32.6k vs
-# 23.4k physics steps/s), because the per-slot Python work (copies, the batched NumPy controller)
-# holds the GIL for ~3/4 of each step and the threads fight over it. Spreading across cores needs
-# worker processes; see BENCHMARKS.md.
-DEFAULT_THREADS = 1
+# Rows of one batch. The batched controller costs ~200 us per call whatever the batch (its ~100
+# NumPy calls) plus ~2 us per trial, so bigger batches amortize it; 128 holds the share of a
+# training call (256 trials on 2 cores). See BENCHMARKS.md.
+SLOTS_PER_THREAD = 128
+DEFAULT_THREADS = 1  # batches per process: the Python part of a step holds the GIL
 
 
 def available_cores() -> int:
@@ -56,112 +57,220 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def _layout(model: mujoco.MjModel) -> scene.SceneIds:
-    """The scene's ids, checked for what this engine assumes (the arm is all the dofs)."""
-    ids = scene.scene_ids(model)
-    assert model.nv == 6 and np.all(ids.dof_adr == np.arange(6)), "the arm must be the only dofs"
-    assert model.site_bodyid[ids.tcp_site] == ids.wrist3_body, "tcp must be on the wrist-3 body"
-    return ids
+class _Layout(NamedTuple):
+    """What a batch needs to know of a scene; the same for every shape and size (checked)."""
+
+    nsite: int
+    nsensordata: int
+    tcp: int
+    ft: int
+    tip: int
+    wrist3: int
+    force_adr: int
+    torque_adr: int
+
+
+# Arrays of a batch with one row per trial (moved with their trial when rows are compacted).
+_ROW_ARRAYS = (
+    "goal_pos goal_rot y0 k_y d_y compliance tare board_pos size start_distance peak_force step "
+    "spec_index jac jac_dot mass qvel bias sim_time site_pos site_mat sensor"
+).split()
+
+
+# The controller's inputs: views of a batch's live rows.
+_Live = collections.namedtuple(
+    "_Live",
+    "goal_pos goal_rot y0 k_y d_y compliance tcp_pos tcp_rot jac jac_dot qvel mass bias force "
+    "torque tare ft_rot ft_pos step peak_force",
+)
+
+
+class _Env:
+    """A private model copy (board, grasp and friction change per trial) and its MjData, with
+    views of the MjData fields a batch reads bound once (each attribute access builds an array)."""
+
+    def __init__(self, key: tuple[str, float]):
+        self.key = key
+        self.model = m = scene.load_model(*key)  # an independent copy
+        self.data = d = mujoco.MjData(m)
+        self.ids = ids = scene.scene_ids(m)
+        assert m.nv == 6 and np.all(ids.dof_adr == np.arange(6)), "the arm must be all the dofs"
+        assert m.site_bodyid[ids.tcp_site] == ids.wrist3_body, "tcp must be on the wrist-3 body"
+        self.layout = _Layout(m.nsite, m.nsensordata, ids.tcp_site, ids.ft_site, ids.tip_site,
+                              ids.wrist3_body, ids.ft_force_adr, ids.ft_torque_adr)  # fmt: skip
+        self.site_xpos, self.site_xmat, self.sensordata = d.site_xpos, d.site_xmat, d.sensordata
+        self.qpos, self.qvel, self.ctrl = d.qpos, d.qvel, d.ctrl
+        self.qfrc_bias, self.qfrc_passive = d.qfrc_bias, d.qfrc_passive
+        self.tcp_pos = self.site_xpos[ids.tcp_site]
+
+
+# Environments not in use, by scene key: kept across calls so that no model is rebuilt.
+_FREE_ENVS: dict[tuple[str, float], list[_Env]] = {}
+_FREE_LOCK = threading.Lock()
+
+
+def _take_env(key: tuple[str, float]) -> _Env:
+    with _FREE_LOCK:
+        free = _FREE_ENVS.get(key)
+        if free:
+            return free.pop()
+    return _Env(key)
+
+
+def _give_env(env: _Env) -> None:
+    with _FREE_LOCK:
+        _FREE_ENVS.setdefault(env.key, []).append(env)
+
+
+def _keep_envs(keys: set) -> None:
+    """Drop the free environments of scenes other than `keys` (~0.8 MB each)."""
+    with _FREE_LOCK:
+        for key in set(_FREE_ENVS) - keys:
+            del _FREE_ENVS[key]
+
+
+def _scene_key(specs: TrialSpec, index: int) -> tuple[str, float]:
+    return scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
 
 
 class _Queue:
-    """Thread-safe hand-out of spec indices and collection of results."""
+    """In-process hand-out of spec indices, results and progress (thread-safe)."""
 
     def __init__(self, n: int, progress: Callable[[int], None] | None):
-        self._next = 0
-        self._n = n
+        self._next, self._n = 0, n
         self._lock = threading.Lock()
-        self._progress = progress
-        self.error: BaseException | None = None
+        self._progress, self._unreported = progress, 0
+        self.records = np.zeros(n, RESULT_DTYPE)
+        self.stopped = False
 
-    def take(self) -> int | None:
+    def take(self, wait: bool = True) -> int | None:
         with self._lock:
-            if self._next >= self._n or self.error is not None:
+            if self._next >= self._n or self.stopped:
                 return None
             self._next += 1
             return self._next - 1
 
-    def done(self, count: int = 1) -> None:
-        if self._progress is not None:
-            with self._lock:
+    def finish(self, record: tuple) -> None:
+        self.records[record[0]] = record
+        with self._lock:
+            self._unreported += 1
+
+    def flush(self) -> None:
+        with self._lock:
+            count, self._unreported = self._unreported, 0
+            if count and self._progress is not None:
                 self._progress(count)
 
-
-class _Results:
-    def __init__(self, n: int):
-        self.success = np.zeros(n, dtype=bool)
-        self.time_s = np.zeros(n)
-        self.final_tip_pos = np.zeros((n, 3))
-        self.peak_force = np.zeros(n)
-        self.reward = np.zeros(n)
-        self.unstable = np.zeros(n, dtype=bool)
-        self.steps = np.zeros(n, dtype=np.int64)
-
-    def result(self) -> TrialResult:
-        return TrialResult(**vars(self))
+    def stop(self) -> None:
+        self.stopped = True
 
 
-class _Worker:
-    """`slots` environments stepped together by one thread."""
+class _Batch:
+    """Up to `slots` trials stepped together by one thread; live trials in rows [0, n).
+
+    Row i: `current[i]` (model, data, ids), `spec_index[i]`, `step[i]`, `tip_pos[i]`, ...
+    """
 
     def __init__(self, specs: TrialSpec, params: ControllerParams, config: TrialConfig, slots: int):
         self.specs, self.params, self.config = specs, params, config
         self.basis = fitted_basis(config.dmp)
-        self.envs: list[dict] = [{} for _ in range(slots)]  # per slot: scene key -> (m, d, layout)
-        self.current: list[tuple | None] = [None] * slots
-        self.spec_index = np.full(slots, -1)
-        b = slots
-        # Per-slot constants of the current trial.
-        self.goal_pos, self.goal_rot = np.zeros((b, 3)), np.tile(np.eye(3), (b, 1, 1))
+        self.slots = b = slots
+        self.keys = {_scene_key(specs, 0)}  # scenes this batch used
+        probe = _take_env(_scene_key(specs, 0))
+        _give_env(probe)
+        self.layout = lay = probe.layout
+        self.envs: list[_Env | None] = [None] * b
+        self.current: list[tuple | None] = [None] * b
+        self._sense_args: list[tuple | None] = [None] * b
+        self._step_args: list[tuple | None] = [None] * b
+        eye = np.eye(3)
+        # Per-trial constants.
+        self.goal_pos, self.goal_rot = np.zeros((b, 3)), np.tile(eye, (b, 1, 1))
         self.y0, self.k_y, self.d_y = np.zeros((b, 6)), np.ones((b, 6)), np.ones((b, 6))
-        self.compliance = np.zeros((b, 6, 6))
-        self.tare = np.zeros((b, 6))
+        self.compliance, self.tare = np.zeros((b, 6, 6)), np.zeros((b, 6))
         self.board_pos, self.size = np.zeros((b, 2)), np.ones(b)
         self.start_distance, self.peak_force = np.ones(b), np.zeros(b)
-        self.step = np.zeros(b, dtype=np.int64)
-        # Per-step measurements, written in place by MuJoCo or copied from MjData.
-        self.jac = np.zeros((b, 6, 6))
-        self.jac_dot = np.zeros((b, 6, 6))
+        self.step, self.spec_index = np.zeros(b, dtype=np.int64), np.full(b, -1)
+        # Per-step measurements: written by MuJoCo (jacobians, mass matrix) or copied.
+        self.jac, self.jac_dot = np.zeros((b, 6, 6)), np.zeros((b, 6, 6))
         self.mass = np.tile(np.eye(6), (b, 1, 1))
-        self.bias, self.qvel = np.zeros((b, 6)), np.zeros((b, 6))
-        self.tcp_pos, self.tcp_rot = np.zeros((b, 3)), np.tile(np.eye(3), (b, 1, 1))
-        self.tip_pos, self.sim_time = np.zeros((b, 3)), np.zeros(b)
-        self.force, self.torque = np.zeros((b, 3)), np.zeros((b, 3))
-        self.ft_rot = np.tile(np.eye(3), (b, 1, 1))
-        self.ft_lever = np.zeros((b, 3))  # p_ft - p_tcp, world
+        self.qvel, self.bias, self.sim_time = np.zeros((b, 6)), np.zeros((b, 6)), np.zeros(b)
+        self.site_pos = np.zeros((b, lay.nsite, 3))
+        self.site_mat = np.tile(eye.ravel(), (b, lay.nsite, 1))
+        self.sensor = np.zeros((b, lay.nsensordata))
+        self._rows = [getattr(self, name) for name in _ROW_ARRAYS]
+        # Views into the copies.
+        self.tcp_pos, self.tip_pos = self.site_pos[:, lay.tcp], self.site_pos[:, lay.tip]
+        self.ft_pos = self.site_pos[:, lay.ft]
+        self.tcp_rot = self.site_mat[:, lay.tcp].reshape(b, 3, 3)
+        self.ft_rot = self.site_mat[:, lay.ft].reshape(b, 3, 3)
+        self.force = self.sensor[:, lay.force_adr : lay.force_adr + 3]
+        self.torque = self.sensor[:, lay.torque_adr : lay.torque_adr + 3]
+        assert np.shares_memory(self.tcp_rot, self.site_mat), "rotations must be views"
         self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
+        self._views: tuple = (0, ())
 
-    def _env(self, slot: int, shape: str, size: float):
-        key = (shape, round(size, 9))
-        env = self.envs[slot].get(key)
+    # -- rows ----------------------------------------------------------------------------------
+
+    def _bind(self, row: int, env: _Env | None) -> None:
+        """Point `row` at `env`: the arguments of its per-step MuJoCo calls and copies."""
+        self.envs[row] = env
         if env is None:
-            model = copy.deepcopy(scene.load_model(shape, size))
-            env = (model, mujoco.MjData(model), _layout(model))
-            self.envs[slot][key] = env
-        return env
+            self.current[row] = self._sense_args[row] = self._step_args[row] = None
+            return
+        m, d = env.model, env.data
+        self.current[row] = (m, d, env.ids)
+        jac, jac_dot = self.jac[row], self.jac_dot[row]
+        self._sense_args[row] = (
+            m, d, jac[:3], jac[3:], jac_dot[:3], jac_dot[3:], env.tcp_pos, self.mass[row],
+            self.site_pos[row], env.site_xpos, self.site_mat[row], env.site_xmat,
+            self.qvel[row], env.qvel, self.bias[row], env.qfrc_bias, env.qfrc_passive,
+            self.sensor[row], env.sensordata,
+        )  # fmt: skip
+        self._step_args[row] = (m, d, env.ctrl)
 
-    def load(self, slot: int, index: int) -> None:
-        """Start trial `index` in `slot`: place board and peg, start pose, tare the sensor."""
-        s, cfg = self.specs, self.config
-        shape = scene.SHAPES[int(s.shape_id[index])]
-        m, d, lay = self._env(slot, shape, float(s.size[index]))
+    def _compact(self, n: int, free: list[int]) -> int:
+        """Move the last live rows into the free rows among [0, n); the new n."""
+        last = n - 1
+        for hole in sorted(free):
+            while last >= 0 and self.envs[last] is None:
+                last -= 1
+            if hole > last:
+                break
+            for a in self._rows:
+                a[hole] = a[last]
+            self._bind(hole, self.envs[last])
+            self._bind(last, None)
+        while last >= 0 and self.envs[last] is None:
+            last -= 1
+        return last + 1
+
+    def _load(self, row: int, index: int) -> None:
+        """Start trial `index` in `row`: place board and peg, start pose, tare the sensor."""
+        s, cfg, lay = self.specs, self.config, self.layout
+        key = _scene_key(s, index)
+        self.keys.add(key)
+        env = _take_env(key)
+        if env.layout != lay:
+            raise ValueError(f"scene {key} has layout {env.layout}, not {lay}")
+        m, d, ids = env.model, env.data, env.ids
         scene.set_board_pose(m, *s.board_pos[index], s.board_yaw[index])
         scene.set_grasp(m, *s.grasp_error[index])
         scene.set_friction(m, s.friction[index])
         mujoco.mj_resetData(m, d)
-        d.qpos[lay.qpos_adr] = s.q0[index]
+        env.qpos[ids.qpos_adr] = s.q0[index]
         mujoco.mj_forward(m, d)
-        d.ctrl[:] = (
-            d.qfrc_bias[lay.dof_adr] - d.qfrc_passive[lay.dof_adr]
-        )  # hold still (gravity compensation) and tare
+        # Hold still (gravity compensation) and tare.
+        env.ctrl[:] = env.qfrc_bias[ids.dof_adr] - env.qfrc_passive[ids.dof_adr]
         mujoco.mj_forward(m, d)
-        self.tare[slot, :3] = d.sensordata[lay.ft_force_adr : lay.ft_force_adr + 3]
-        self.tare[slot, 3:] = d.sensordata[lay.ft_torque_adr : lay.ft_torque_adr + 3]
+        sd = env.sensordata
+        self.tare[row, :3] = sd[lay.force_adr : lay.force_adr + 3]
+        self.tare[row, 3:] = sd[lay.torque_adr : lay.torque_adr + 3]
         goal_pos, goal_rot = trial_goals(
             s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1], cfg
         )
-        tcp_pos = d.site_xpos[lay.tcp_site].copy()
-        tcp_rot = d.site_xmat[lay.tcp_site].reshape(3, 3).copy()
+        tcp_pos = env.site_xpos[lay.tcp].copy()
+        tcp_rot = env.site_xmat[lay.tcp].reshape(3, 3).copy()
         y0 = start_state(goal_pos[0], goal_rot[0], tcp_pos, tcp_rot)
         p = self.params
         skill = make_skill(
@@ -171,99 +280,122 @@ class _Worker:
             y0,
             cfg.dmp.tau,
         )
-        self.goal_pos[slot], self.goal_rot[slot] = skill.goal_pos, skill.goal_rot
-        self.y0[slot], self.k_y[slot], self.d_y[slot] = skill.y0, skill.k_y, skill.d_y
-        self.compliance[slot] = skill.compliance
-        self.board_pos[slot], self.size[slot] = s.board_pos[index], s.size[index]
-        tip = d.site_xpos[lay.tip_site]
-        self.start_distance[slot] = np.linalg.norm(tip - destination(s.board_pos[index]))
-        self.peak_force[slot] = 0.0
-        self.step[slot] = 0
-        self.current[slot] = (m, d, lay)
-        self.spec_index[slot] = index
+        self.goal_pos[row], self.goal_rot[row] = skill.goal_pos, skill.goal_rot
+        self.y0[row], self.k_y[row], self.d_y[row] = skill.y0, skill.k_y, skill.d_y
+        self.compliance[row] = skill.compliance
+        self.board_pos[row], self.size[row] = s.board_pos[index], s.size[index]
+        tip = env.site_xpos[lay.tip]
+        self.start_distance[row] = np.linalg.norm(tip - destination(s.board_pos[index]))
+        self.peak_force[row] = 0.0
+        self.step[row] = 0
+        self.spec_index[row] = index
+        self._bind(row, env)
 
-    def sense(self, slot: int) -> None:
+    def _finish(self, row: int, success: bool, unstable: bool, sink) -> None:
+        steps, tip = self.step[row], self.tip_pos[row].copy()
+        success = success and not unstable
+        reward = trial_reward(
+            np.asarray(success), tip, self.board_pos[row], self.start_distance[row],
+            self.config.reward,
+        )  # fmt: skip
+        sink.finish((self.spec_index[row], success, steps * self.config.timestep, tip,
+                     self.peak_force[row], reward, unstable, steps))  # fmt: skip
+        _give_env(self.envs[row])
+        self._bind(row, None)
+        self.spec_index[row] = -1
+
+    # -- one control period ----------------------------------------------------------------------
+
+    def _sense(self, rows) -> None:
         """mj_step1 and copy what the controller needs into the batch arrays."""
-        m, d, lay = self.current[slot]
-        mujoco.mj_step1(m, d)
-        mujoco.mj_jacSite(m, d, self.jac[slot, :3], self.jac[slot, 3:], lay.tcp_site)
-        self.tcp_pos[slot] = d.site_xpos[lay.tcp_site]
-        mujoco.mj_jacDot(
-            m,
-            d,
-            self.jac_dot[slot, :3],
-            self.jac_dot[slot, 3:],
-            self.tcp_pos[slot],
-            lay.wrist3_body,
-        )
-        mujoco.mj_fullM(m, d, self.mass[slot])
-        self.tcp_rot[slot] = d.site_xmat[lay.tcp_site].reshape(3, 3)
-        self.ft_rot[slot] = d.site_xmat[lay.ft_site].reshape(3, 3)
-        self.ft_lever[slot] = d.site_xpos[lay.ft_site] - self.tcp_pos[slot]
-        self.tip_pos[slot] = d.site_xpos[lay.tip_site]
-        self.qvel[slot] = d.qvel
-        self.bias[slot] = d.qfrc_bias - d.qfrc_passive  # h: Coriolis, gravity, joint damping
-        sd = d.sensordata
-        self.force[slot] = sd[lay.ft_force_adr : lay.ft_force_adr + 3]
-        self.torque[slot] = sd[lay.ft_torque_adr : lay.ft_torque_adr + 3]
-        self.sim_time[slot] = d.time
+        step1, jac_site = mujoco.mj_step1, mujoco.mj_jacSite
+        jac_dot, full_m = mujoco.mj_jacDot, mujoco.mj_fullM
+        subtract, sim_time, args = np.subtract, self.sim_time, self._sense_args
+        tcp, wrist3 = self.layout.tcp, self.layout.wrist3
+        for i in rows:
+            (m, d, jl, ja, jdl, jda, p, mass, sp, xpos, sm, xmat, qv, qvel, bias, qfrc_bias,
+             qfrc_passive, sensor, sensordata) = args[i]  # fmt: skip
+            step1(m, d)
+            jac_site(m, d, jl, ja, tcp)
+            jac_dot(m, d, jdl, jda, p, wrist3)
+            full_m(m, d, mass)
+            sp[:] = xpos
+            sm[:] = xmat
+            qv[:] = qvel
+            subtract(qfrc_bias, qfrc_passive, out=bias)  # h: Coriolis, gravity, joint damping
+            sensor[:] = sensordata
+            sim_time[i] = d.time
 
-    def run(self, queue: _Queue, results: _Results, observer=None) -> None:
-        """Step until the queue is empty; `observer(worker, rows, wrench)` sees every step."""
+    def _ended(self, n: int):
+        """success, unstable, ended: (n,) bool of the live rows."""
+        cfg, dt = self.config, self.config.timestep
+        tip, step = self.tip_pos[:n], self.step[:n]
+        success = is_success(tip, self.board_pos[:n], self.size[:n], cfg.success_height)
+        # Too fast, NaN or infinite joint speeds fail the speed test alike.
+        ok = (np.abs(self.qvel[:n]).max(axis=-1) < cfg.max_joint_speed) & np.isfinite(tip).all(-1)
+        # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
+        unstable = ~ok | (np.abs(self.sim_time[:n] - step * dt) > 0.5 * dt)
+        return success, unstable, success | unstable | (step >= cfg.max_steps)
+
+    def _end_trials(self, n: int, source) -> int:
+        """Finish the trials that ended, refill their rows from `source`; the new n."""
+        while True:
+            success, unstable, ended = self._ended(n)
+            rows = np.flatnonzero(ended)
+            if rows.size == 0:
+                return n
+            free = []
+            for i in rows.tolist():
+                self._finish(i, bool(success[i]), bool(unstable[i]), source)
+                index = source.take()
+                if index is None:
+                    free.append(i)
+                else:
+                    self._load(i, index)
+                    self._sense((i,))  # checked (step 0) on the next pass
+            source.flush()
+            n = self._compact(n, free)
+
+    def _live(self, n: int) -> _Live:
+        """The controller's inputs: views of rows [0, n), rebuilt only when n changes."""
+        if self._views[0] != n:
+            self._views = (n, _Live(*(getattr(self, k)[:n] for k in _Live._fields)))
+        return self._views[1]
+
+    def run(self, source, observer: Callable | None = None) -> None:
+        """Step until `source` runs dry; `observer(batch, rows, wrench)` sees every step."""
         cfg = self.config
-        slots = len(self.envs)
-        for slot in range(slots):
-            index = queue.take()
+        n = 0
+        while n < self.slots:
+            index = source.take(wait=n == 0)  # start with the trials at hand
             if index is None:
                 break
-            self.load(slot, index)
-        dt, max_steps = cfg.timestep, cfg.max_steps
-        while True:
-            live = [i for i in range(slots) if self.current[i] is not None]
-            if not live:
+            self._load(n, index)
+            n += 1
+        step2, step_args = mujoco.mj_step2, self._step_args
+        while n:
+            self._sense(range(n))
+            n = self._end_trials(n, source)
+            if not n:
                 return
-            for i in live:
-                self.sense(i)
-            rows = np.asarray(live)
-            success = is_success(self.tip_pos, self.board_pos, self.size, cfg.success_height)
-            speed_ok = np.all(np.abs(self.qvel) < cfg.max_joint_speed, axis=-1)
-            finite = np.isfinite(self.tip_pos).all(-1) & np.isfinite(self.qvel).all(-1)
-            # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
-            reset = np.abs(self.sim_time - self.step * dt) > 0.5 * dt
-            unstable = ~(speed_ok & finite) | reset
-            ended = success | unstable | (self.step >= max_steps)
-            for i in rows[ended[rows]]:
-                self._finish(i, bool(success[i]), bool(unstable[i]), results)
-                queue.done()
-                index = queue.take()
-                if index is None:
-                    self.current[i] = None
-                    self.spec_index[i] = -1
-                else:
-                    self.load(i, index)
-                    self.sense(i)
-            live = [i for i in range(slots) if self.current[i] is not None]
-            if not live:
-                return
-            rows = np.asarray(live)
+            v = self._live(n)
             wrench = wrench_in_goal_frame(
-                self.force, self.torque, self.tare, self.ft_rot, self.ft_lever, self.goal_rot
+                v.force, v.torque, v.tare, v.ft_rot, v.ft_pos - v.tcp_pos, v.goal_rot
             )
-            force = np.linalg.norm(wrench[:, :3], axis=-1)
-            self.peak_force[rows] = np.maximum(self.peak_force[rows], force[rows])
+            np.maximum(v.peak_force, np.linalg.norm(wrench[:, :3], axis=-1), out=v.peak_force)
             if observer is not None:
-                observer(self, rows, wrench)
+                observer(self, np.arange(n), wrench)
             torques = skill_torque(
-                Skill(self.goal_pos, self.goal_rot, self.y0, self.k_y, self.d_y, self.compliance),
+                Skill(v.goal_pos, v.goal_rot, v.y0, v.k_y, v.d_y, v.compliance),
                 self.basis,
-                self.step * dt,
-                self.tcp_pos,
-                self.tcp_rot,
-                self.jac,
-                (self.jac_dot @ self.qvel[..., None])[..., 0],
-                self.qvel,
-                self.mass,
-                self.bias,
+                v.step * cfg.timestep,
+                v.tcp_pos,
+                v.tcp_rot,
+                v.jac,
+                (v.jac_dot @ v.qvel[..., None])[..., 0],
+                v.qvel,
+                v.mass,
+                v.bias,
                 wrench,
                 self.torque_limits,
                 cfg.dmp.tau,
@@ -272,28 +404,39 @@ class _Worker:
                 cfg.pinv_damping,
             )
             torques = np.where(np.isfinite(torques), torques, 0.0)
-            for i in live:
-                m, d, _ = self.current[i]
-                d.ctrl[:] = torques[i]
-                mujoco.mj_step2(m, d)
-            self.step[rows] += 1
+            for i in range(n):
+                m, d, ctrl = step_args[i]
+                ctrl[:] = torques[i]
+                step2(m, d)
+            np.add(v.step, 1, out=v.step)
 
-    def _finish(self, slot: int, success: bool, unstable: bool, results: _Results) -> None:
-        index = self.spec_index[slot]
-        tip = self.tip_pos[slot]
-        results.success[index] = success and not unstable
-        results.unstable[index] = unstable
-        results.time_s[index] = self.step[slot] * self.config.timestep
-        results.final_tip_pos[index] = tip
-        results.peak_force[index] = self.peak_force[slot]
-        results.steps[index] = self.step[slot]
-        results.reward[index] = trial_reward(
-            np.asarray(results.success[index]),
-            tip,
-            self.board_pos[slot],
-            self.start_distance[slot],
-            self.config.reward,
-        )
+
+def run_batches(specs, params, config, threads: int, slots: int, source, observer=None) -> None:
+    """Run `threads` batches of `slots` rows on the trials `source` hands out, in this process.
+
+    The environments of this call's scenes are kept for the next call, the others dropped.
+    """
+    batches = [_Batch(specs, params, config, slots) for _ in range(threads)]
+    errors: list[BaseException] = []
+
+    def work(batch):
+        try:
+            batch.run(source, observer)
+        except BaseException as exc:  # re-raised in the caller's thread
+            errors.append(exc)
+            source.stop()
+
+    if threads == 1:
+        work(batches[0])
+    else:
+        pool = [threading.Thread(target=work, args=(b,), daemon=True) for b in batches]
+        for t in pool:
+            t.start()
+        for t in pool:
+            t.join()
+    _keep_envs(set().union(*(b.keys for b in batches)))
+    if errors:
+        raise errors[0]
 
 
 def run_trials(
@@ -304,29 +447,36 @@ def run_trials(
     slots_per_thread: int | None = None,
     progress: Callable[[int], None] | None = None,
     observer: Callable | None = None,
+    workers: int | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
-    observer(worker, rows, wrench), if given, is called every control period with the worker,
-    its live slot indices and their wrenches (for demos and benchmarks; it runs in the workers'
-    threads).
+    workers: processes (default: every core this process may use, at most one per trial);
+    1 runs the trials in this process. threads: batches per process (default 1).
+    slots_per_thread: rows per batch (default: SLOTS_PER_THREAD, or fewer to spread the trials
+    over every batch). progress(count) is called as trials finish. observer(batch, rows, wrench),
+    if given, is called every control period with a batch, its live rows and their wrenches
+    (for demos and benchmarks); it runs in this process, so workers must be 1, its default then.
     """
     n = len(specs)
-    threads = max(1, min(threads or DEFAULT_THREADS, n))
-    slots = slots_per_thread or max(1, min(SLOTS_PER_THREAD, -(-n // threads)))
-    queue, results = _Queue(n, progress), _Results(n)
+    threads = _count("threads", threads, DEFAULT_THREADS)
+    if observer is not None and workers not in (None, 1):
+        raise ValueError("an observer runs in this process: it needs workers=1")
+    default = 1 if observer is not None else available_cores()
+    workers = min(_count("workers", workers, default), -(-n // threads))
+    slots = _count("slots_per_thread", slots_per_thread, 0) or max(
+        1, min(SLOTS_PER_THREAD, -(-n // (workers * threads)))
+    )
+    if workers > 1:
+        return _pool.run(specs, params, config, workers, threads, slots, progress)
+    queue = _Queue(n, progress)
+    run_batches(specs, params, config, threads, slots, queue, observer)
+    return to_result(queue.records)
 
-    def work():
-        try:
-            _Worker(specs, params, config, slots).run(queue, results, observer)
-        except BaseException as exc:  # re-raised in the caller's thread
-            queue.error = exc
 
-    pool = [threading.Thread(target=work, daemon=True) for _ in range(threads)]
-    for t in pool:
-        t.start()
-    for t in pool:
-        t.join()
-    if queue.error is not None:
-        raise queue.error
-    return results.result()
+def _count(name: str, value, default: int) -> int:
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
