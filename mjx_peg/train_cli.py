@@ -76,16 +76,6 @@ def resolve_config(args):
     return config
 
 
-def quiet_brax_import() -> None:
-    """Import brax with stdout muted: it imports mujoco.mjx, whose Warp backend prints "Failed
-    to import warp" on every machine without Warp (all CPU ones)."""
-    import contextlib
-    import io
-
-    with contextlib.redirect_stdout(io.StringIO()):
-        import brax.envs  # noqa: F401
-
-
 def join_distributed() -> None:
     """jax.distributed.initialize from JAX_COORDINATOR_ADDRESS / JAX_NUM_PROCESSES /
     JAX_PROCESS_ID when set, else from the cluster's environment (SLURM, ...)."""
@@ -112,7 +102,7 @@ def main(argv=None) -> int:
         config = resolve_config(args)
         if args.distributed:
             join_distributed()
-        quiet_brax_import()
+        import mjx_peg.env  # noqa: F401  first: it imports brax with the Warp message muted
         from mjx_peg.trainer import train
 
         options = {} if args.workers is None else {"workers": args.workers}
