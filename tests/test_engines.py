@@ -162,3 +162,50 @@ def test_workers_never_import_jax():
     with pytest.raises(ValueError, match="observer"):
         run_trials(_specs("square", 2, seed=8), baseline_params(), engine="mujoco",
                    observer=lambda *a: None, workers=2)  # fmt: skip
+
+
+def test_workers_exit_when_the_caller_is_killed():
+    """SIGKILL the calling process mid-call: its workers notice within a second and exit."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    code = (
+        "import numpy as np\n"
+        "from mjx_peg.baseline import baseline_params\n"
+        "from mjx_peg.engines import run_trials, _pool\n"
+        "from mjx_peg.task import TaskConfig, sample_trials\n"
+        "from mjx_peg.trial import TrialConfig\n"
+        "specs = sample_trials(TaskConfig(shapes=('square',)), 1, 40)\n"
+        "def started(count):\n"
+        "    print(*[w.proc.pid for w in _pool._POOL.workers], flush=True)\n"
+        "params = np.tile(baseline_params(), (40, 1))\n"
+        "params[1:, 0] = 1e-6  # almost no stiffness: the rest hover to the time limit\n"
+        "params[0, :2] = 1e9  # ends at once, so progress reports while the rest run\n"
+        "run_trials(specs, params, engine='mujoco', workers=2, progress=started,\n"
+        "           config=TrialConfig(time_limit_s=600.0))\n"
+    )
+    caller = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    pids = [int(p) for p in caller.stdout.readline().split()]
+    assert len(pids) == 2
+    for pid in pids:
+        os.kill(pid, 0)  # running mid-call
+    caller.send_signal(signal.SIGKILL)
+    caller.wait()
+    deadline = time.monotonic() + 10.0
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.1)
+        alive = [pid for pid in alive if _running(pid)]
+    assert not alive, f"workers {alive} outlived their killed caller"
+
+
+def _running(pid: int) -> bool:
+    """True while `pid` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

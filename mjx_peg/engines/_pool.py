@@ -19,7 +19,7 @@ call costs a few messages. One socket pair per worker carries length-framed byte
 Trials differ a lot in length, so each worker first gets an interleaved share (FIRST_SHARE of
 the trials, at most its slots) and then small chunks on demand. A worker that dies or fails
 breaks the call with one RuntimeError in the caller, and the pool is discarded (the next call
-starts a new one).
+starts a new one). A worker whose caller dies (even by SIGKILL) exits within PARENT_CHECK_S.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import traceback
 from multiprocessing import Pipe
 from multiprocessing.connection import Connection, wait
@@ -62,6 +63,8 @@ RESULT_DTYPE = np.dtype(
 # that they finish together.
 FIRST_SHARE = 0.75
 CHUNK = 4
+# A worker checks this often (s) whether its parent is still alive.
+PARENT_CHECK_S = 0.5
 _PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 
 
@@ -111,10 +114,10 @@ class _Worker:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [_PACKAGE_ROOT, env.get("PYTHONPATH")]))
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             env.setdefault(var, "1")  # one core per worker
-        code = "import sys; from mjx_peg.engines._pool import serve; serve(int(sys.argv[1]))"
+        code = "import sys; from mjx_peg.engines._pool import serve; serve(*map(int, sys.argv[1:]))"
         try:
             self.proc = subprocess.Popen(
-                [sys.executable, "-c", code, str(child.fileno())],
+                [sys.executable, "-c", code, str(child.fileno()), str(os.getpid())],
                 pass_fds=(child.fileno(),),
                 stdin=subprocess.DEVNULL,
                 env=env,
@@ -310,9 +313,22 @@ class _Source:
         self.stopped = True
 
 
-def serve(fd: int) -> None:
+def _exit_with_parent(parent: int, period_s: float = PARENT_CHECK_S) -> None:
+    """Exit this worker at once when its parent dies, even mid-trial (a killed caller leaves
+    no workers running): the parent is gone when this process is re-parented."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(period_s)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def serve(fd: int, parent: int) -> None:
     """A worker process's main loop: run calls until told to quit or the parent goes away."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when workers stop
+    _exit_with_parent(parent)
     from mjx_peg.engines import mujoco as engine
 
     conn = Connection(fd)
