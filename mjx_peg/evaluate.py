@@ -11,7 +11,8 @@ resumed run writes the same grid.csv as an uninterrupted one.
     python eval.py --policy runs/quick --grid paper-small --out eval/quick
 
 Outputs in --out: config.json (the resolved config; resuming into a directory made with another
-config is refused), grid.csv, success_heatmap.png, time_heatmap.png, summary.md.
+config is refused), grid.csv, success_heatmap.png, time_heatmap.png, summary.md and, where the
+paper has numbers for the condition, paper_comparison.png.
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ DEFAULT_CHUNK_TRIALS = 1000  # trials per run_trials call: results saved this of
 # the throughput of 1000 here)
 CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
+PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
 _MAX_ERROR = {"linear_mm": 50.0, "angular_deg": 45.0}  # TaskConfig's bounds, in mm and deg
 _RESULT_FIELDS = ("success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward")
 
@@ -399,7 +401,8 @@ def write_outputs(
     other_name: str = "",
     alternative: str = "less",
 ) -> es.GridTable:
-    """grid.csv, the two heatmaps and summary.md of a finished evaluation."""
+    """grid.csv, the two heatmaps, summary.md and (with a paper condition) the paper
+    comparison plot of a finished evaluation."""
     from mjx_peg import evaluate_plots
 
     out = Path(out_dir)
@@ -408,6 +411,9 @@ def write_outputs(
     what = f"{', '.join(config.shapes)}, S = {config.size_mm:g} mm, N = {config.trials}"
     evaluate_plots.success_heatmap(grid, out / SUCCESS_PNG, f"Success rate (%): {what}")
     evaluate_plots.time_heatmap(grid, out / TIME_PNG, f"Mean time to complete (s): {what}")
+    if paper_name is not None:
+        paper = es.PAPER[paper_name]
+        evaluate_plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
     header = _header(out, config, grid, policy_label)
     text = es.summary_markdown(grid, header, paper_name, other, other_name, alternative)
     _write_atomic(out / SUMMARY_FILE, lambda f: f.write(text.encode()))
@@ -575,5 +581,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(
         f"eval.py: {ran} trials run ({n_ranges * config.trials} in the grid) in {wall:.1f} s; "
         f"wrote {out / GRID_FILE}, {SUCCESS_PNG}, {TIME_PNG}, {SUMMARY_FILE}"
+        + (f", {PAPER_PNG}" if paper_name is not None else "")
     )
     return 0

@@ -1,4 +1,5 @@
-"""Heatmaps of an evaluation grid, annotated like the paper's Figs. 6-7.
+"""Heatmaps of an evaluation grid, annotated like the paper's Figs. 6-7, and its quarters beside
+the paper's (Tables 4-5).
 
 Rows are angular error ranges (increasing upwards), columns linear error ranges (increasing to
 the right), so Q1 is bottom left and Q4 top right as in the paper. Every cell is annotated;
@@ -19,7 +20,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from mjx_peg.evaluate_stats import GridTable  # noqa: E402
+from mjx_peg.evaluate_stats import (  # noqa: E402
+    QUARTERS,
+    GridTable,
+    PaperCondition,
+    quarter_stats,
+)
 
 SUCCESS_BOX_PCT, SUCCESS_BOLD_PCT = 95.0, 90.0  # the paper's Fig. 6 thresholds
 TIME_BOX_S, TIME_BOLD_S = 3.0, 4.0  # the paper's Fig. 7 thresholds
@@ -91,12 +97,7 @@ def heatmap(
     ax.set_title(title, fontsize=10)
     fig.colorbar(image, ax=ax, label=label, fraction=0.04, pad=0.02)
     fig.tight_layout()
-    path = Path(path)
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    return _save(fig, path)
 
 
 def success_heatmap(grid: GridTable, path, title: str = "Success rate (%)") -> Path:
@@ -129,3 +130,53 @@ def time_heatmap(grid: GridTable, path, title: str = "Mean time to complete (s)"
         bold=lambda v: v < TIME_BOLD_S,
         cmap="RdYlGn_r",
     )
+
+
+def paper_bars(grid: GridTable, paper: PaperCondition, path, title: str) -> Path:
+    """Per-quarter mean (bar) and min-max (whiskers) of success rate and time, this evaluation
+    beside the paper's numbers for the same condition (Tables 4-5); written atomically."""
+    quarters = quarter_stats_by_metric(grid)
+    metrics = [("success", "success rate (%)", paper.success)]
+    if paper.time is not None:
+        metrics.append(("time", "mean time to complete (s)", paper.time))
+    fig, axes = plt.subplots(1, len(metrics), figsize=(4.6 * len(metrics), 3.8), squeeze=False)
+    x = np.arange(len(QUARTERS))
+    for ax, (metric, label, theirs) in zip(axes[0], metrics, strict=True):
+        ours = quarters[metric]
+        for offset, name, mean, low, high, color in (
+            (-0.2, "ours", *ours, "tab:blue"),
+            (0.2, "paper", theirs.mean, theirs.min, theirs.max, "tab:gray"),
+        ):
+            mean, low, high = (np.asarray(v, dtype=float) for v in (mean, low, high))
+            ax.bar(x + offset, mean, 0.4, color=color, alpha=0.8, label=name)
+            ax.errorbar(x + offset, mean, yerr=[mean - low, high - mean], fmt="none",
+                        ecolor="black", capsize=3, lw=1)  # fmt: skip
+        ax.set_xticks(x, QUARTERS)
+        ax.set_ylabel(label)
+        if metric == "success":
+            ax.set_ylim(0.0, 100.0)
+        ax.grid(axis="y", alpha=0.3)
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="lower center", ncol=2, fontsize=8)
+    fig.suptitle(f"{title}\nbars: mean over ranges; whiskers: min-max", fontsize=9)
+    fig.tight_layout(rect=(0.0, 0.06, 1.0, 1.0))
+    return _save(fig, path)
+
+
+def quarter_stats_by_metric(grid: GridTable) -> dict[str, tuple[list, list, list]]:
+    """{"success"|"time": (means, mins, maxes)} over the ranges of each quarter, Q1..Q4."""
+    out = {}
+    for metric in ("success", "time"):
+        stats = quarter_stats(grid.values(metric), grid.quarter)
+        out[metric] = tuple(
+            [getattr(stats[q], k) for q in QUARTERS] for k in ("mean", "min", "max")
+        )
+    return out
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path

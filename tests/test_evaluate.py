@@ -11,7 +11,13 @@ import pytest
 
 from mjx_peg import evaluate
 from mjx_peg import evaluate_stats as es
-from mjx_peg.evaluate_plots import grid_matrix, success_heatmap, time_heatmap
+from mjx_peg.evaluate_plots import (
+    grid_matrix,
+    paper_bars,
+    quarter_stats_by_metric,
+    success_heatmap,
+    time_heatmap,
+)
 
 REPO = Path(__file__).resolve().parent.parent
 PAPER_TEX = REPO.parent / "shared" / "paper" / "spector-zacksenhouse-compliant-dmp.tex"
@@ -224,6 +230,12 @@ def test_heatmaps_are_written(tmp_path):
         path = fn(grid, tmp_path / name)
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
+    means, mins, maxes = quarter_stats_by_metric(grid)["success"]
+    assert means[0] == pytest.approx(97.0) and mins[0] <= means[0] <= maxes[0]
+    for condition in ("nominal", "triangle"):  # the triangle has no paper times: one panel
+        path = paper_bars(grid, es.PAPER[condition], tmp_path / f"{condition}.png", condition)
+        data = path.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
 
 
 def test_parse_ranges():
@@ -265,6 +277,7 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
     assert evaluate.main([*TINY, "--out", str(full)]) == 0
     for name in ("grid.csv", "summary.md", "success_heatmap.png", "time_heatmap.png"):
         assert (full / name).stat().st_size > 0, name
+    assert (full / "paper_comparison.png").stat().st_size > 0  # circle + square, 50 mm: nominal
     rows = (full / "grid.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[1].startswith("0,0.5,1,Q1,4,")
 
