@@ -17,23 +17,24 @@ import copy
 
 import mujoco
 import numpy as np
+from engines_agree import agreement_specs  # benchmarks/ is on sys.path when run
 
 from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import run_trials
 from mjx_peg.scene import SHAPES
-from mjx_peg.task import TaskConfig, sample_trials
 from mjx_peg.trial import TrialConfig
 
 
 def snapshots(specs, rows, step: int, config: TrialConfig) -> dict[int, tuple]:
-    """{batch row: (MjModel, copy of MjData)} at `step` of each trial in `rows`."""
+    """{spec index: (MjModel, copy of MjData)} at `step` of each trial in `rows`."""
     taken = {}
 
     def observe(batch, live, wrench):
         for i in live:
-            if int(batch.step[i]) == step and i not in taken:
+            index = int(rows[batch.spec_index[i]])  # batch rows move as trials end
+            if int(batch.step[i]) == step and index not in taken:
                 m, d, _ = batch._step_args[i]
-                taken[i] = (m, copy.copy(d))
+                taken[index] = (m, copy.copy(d))
 
     run_trials(
         specs.take(rows), baseline_params(), engine="mujoco", config=config, workers=1,
@@ -68,10 +69,7 @@ def main() -> None:
     import jax
     from mujoco import mjx
 
-    task = TaskConfig(
-        shapes=("circle", "square", "triangle"), linear_error=0.003, angular_error=np.deg2rad(4.0)
-    )
-    specs = sample_trials(task, args.seed, args.trials)
+    specs = agreement_specs(args.trials, seed=args.seed)
     config = TrialConfig(time_limit_s=max(4.0, 2 * args.step * TrialConfig().timestep))
     result = run_trials(specs, baseline_params(), engine="mujoco", config=config)
     failed = ~result.success & (specs.shape_id == SHAPES.index(args.shape))
@@ -79,8 +77,8 @@ def main() -> None:
     if rows.size == 0:
         raise SystemExit(f"contact_diff.py: no failed {args.shape} trial among {args.trials}")
     forward = jax.jit(mjx.forward)
-    for row, (m, d) in sorted(snapshots(specs, rows, args.step, config).items()):
-        print(f"trial {rows[row]} ({args.shape}) at step {args.step}:")
+    for index, (m, d) in sorted(snapshots(specs, rows, args.step, config).items()):
+        print(f"trial {index} ({args.shape}) at step {args.step}:")
         mujoco.mj_forward(m, d)
         c = d.contact[: d.ncon]
         show_contacts("mujoco", d, c.pos, c.dist, c.geom)

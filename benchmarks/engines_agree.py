@@ -18,8 +18,22 @@ import numpy as np
 
 from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import run_trials
-from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.task import TaskConfig, TrialSpec, sample_trials
 from mjx_peg.trial import TrialConfig
+
+
+def agreement_specs(
+    trials: int = 100,
+    shapes: tuple[str, ...] = ("circle", "square", "triangle"),
+    linear_mm: float = 3.0,
+    angular_deg: float = 4.0,
+    seed: int = 11,
+) -> TrialSpec:
+    """The specs both engines run (this script's defaults; contact_diff.py reuses them)."""
+    task = TaskConfig(
+        shapes=shapes, linear_error=linear_mm / 1000.0, angular_error=np.deg2rad(angular_deg)
+    )
+    return sample_trials(task, seed, trials)
 
 
 def main() -> None:
@@ -34,12 +48,9 @@ def main() -> None:
     p.add_argument("--nudge-m", type=float, default=1e-9, help="hole shift of the C-vs-C check")
     p.add_argument("--out", help="save per-trial results of both engines to this .npz")
     args = p.parse_args()
-    task = TaskConfig(
-        shapes=tuple(args.shapes.split(",")),
-        linear_error=args.linear_mm / 1000.0,
-        angular_error=np.deg2rad(args.angular_deg),
+    specs = agreement_specs(
+        args.trials, tuple(args.shapes.split(",")), args.linear_mm, args.angular_deg, args.seed
     )
-    specs = sample_trials(task, args.seed, args.trials)
     config = TrialConfig(time_limit_s=args.time_limit)
     start = time.perf_counter()
     cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config)
