@@ -1,8 +1,14 @@
 """Watch one insertion: `python -m mjx_peg.demo --shape square --size 50 --linear-mm 3 ...`.
 
-Runs one trial with the hand-tuned baseline (or a 38-vector of parameters from a .npz) on the
+Runs one trial with the hand-tuned baseline or a learned policy (`--policy RUN_DIR`) on the
 C MuJoCo engine and writes, into --out: `trial.png` (tip height, lateral error of the tip from the
 hole axis and the contact wrench over time) and `frames.png` (a strip of rendered frames).
+
+`--replay EVAL_DIR --range R --trial K` replays one trial of an evaluation instead: the same
+spec, policy and time limit, so a failure found in a grid can be watched. It checks that the
+replay ends as the evaluation recorded (exit 1 if not).
+
+    python -m mjx_peg.demo --replay runs/eval/nominal --range 300 --trial failure
 """
 
 from __future__ import annotations
@@ -15,28 +21,76 @@ import sys
 import numpy as np
 
 from mjx_peg import scene
-from mjx_peg.baseline import baseline_params
-from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.task import TaskConfig, TrialSpec, sample_trials
 from mjx_peg.trial import TrialConfig
+
+# The trial options (argparse dest -> default); --replay takes them from the evaluation.
+_DEFAULTS = {
+    "shape": "square",
+    "size": 50.0,
+    "linear_mm": 3.0,
+    "angular_deg": 4.0,
+    "seed": 0,
+    "time_limit": 10.0,
+    "policy": "baseline",
+}
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m mjx_peg.demo", description=__doc__.splitlines()[0])
-    p.add_argument("--shape", default="square", choices=scene.SHAPES)
-    p.add_argument("--size", type=float, default=50.0, help="characteristic size S in mm")
-    p.add_argument("--linear-mm", type=float, default=3.0, help="± linear error range (mm)")
-    p.add_argument("--angular-deg", type=float, default=4.0, help="± angular error range (deg)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--time-limit", type=float, default=10.0, help="simulated seconds")
+    d = _DEFAULTS
+    p.add_argument("--shape", choices=scene.SHAPES, help=f"default {d['shape']}")
+    p.add_argument(
+        "--size", type=float, help=f"characteristic size S in mm (default {d['size']:g})"
+    )
+    p.add_argument(
+        "--linear-mm", type=float, help=f"± linear error range (mm, default {d['linear_mm']:g})"
+    )
+    p.add_argument(
+        "--angular-deg",
+        type=float,
+        help=f"± angular error range (deg, default {d['angular_deg']:g})",
+    )
+    p.add_argument("--seed", type=int, help=f"default {d['seed']}")
+    p.add_argument(
+        "--time-limit", type=float, help=f"simulated seconds (default {d['time_limit']:g})"
+    )
+    p.add_argument("--policy", help="RUN_DIR holding policy.npz, or baseline (the default)")
+    p.add_argument(
+        "--replay",
+        type=pathlib.Path,
+        metavar="EVAL_DIR",
+        help="replay a trial of this evaluation (its spec, policy and time limit)",
+    )
+    p.add_argument("--range", type=int, help="with --replay: the range (grid.csv's first column)")
+    p.add_argument(
+        "--trial",
+        default="0",
+        help="with --replay: trial index in the range, or 'failure' / 'success' for "
+        "the range's first such trial (default 0)",
+    )
     p.add_argument("--frames", type=int, default=6, help="frames in the strip (0: none)")
     p.add_argument("--out", type=pathlib.Path, default=pathlib.Path("demo_out"))
     return p
 
 
-def run_demo(args) -> dict:
-    from mjx_peg.engines import mujoco as engine
-    from mjx_peg.trial import as_controller_params
+def _controller(policy: str):
+    from mjx_peg.evaluate import load_controller
 
+    return load_controller(policy)
+
+
+def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
+    """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
+    for dest, value in _DEFAULTS.items():
+        if getattr(args, dest) is None:
+            setattr(args, dest, value)
+    if not (args.size > 0 and np.isfinite(args.size)):
+        raise ValueError(f"--size must be a positive number of mm, got {args.size}")
+    if args.linear_mm < 0 or args.angular_deg < 0:
+        raise ValueError("error ranges must be >= 0")
+    if not args.time_limit > 0:
+        raise ValueError("--time-limit must be positive")
     task = TaskConfig(
         shapes=(args.shape,),
         sizes=(args.size / 1000.0,),
@@ -44,8 +98,68 @@ def run_demo(args) -> dict:
         angular_error=np.deg2rad(args.angular_deg),
     )
     specs = sample_trials(task, args.seed, 1)
-    config = TrialConfig(time_limit_s=args.time_limit)
-    params = as_controller_params(baseline_params(), 1)
+    _, controller = _controller(args.policy)
+    label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"
+    return specs, controller(specs), TrialConfig(time_limit_s=args.time_limit), label
+
+
+def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:
+    """Like `trial_from_args` for trial --trial of range --range of the evaluation --replay,
+    plus what the evaluation recorded for that trial."""
+    from mjx_peg import evaluate
+
+    given = ["--" + k.replace("_", "-") for k in _DEFAULTS if getattr(args, k) is not None]
+    if given:
+        raise ValueError(f"--replay takes the trial from the evaluation; drop {', '.join(given)}")
+    config, policy_dir = evaluate.read_eval_dir(args.replay)
+    n_ranges = len(config.ranges)
+    if args.range is None or not 0 <= args.range < n_ranges:
+        raise ValueError(f"--replay needs --range between 0 and {n_ranges - 1}, got {args.range}")
+    recorded = evaluate.load_range(pathlib.Path(args.replay), config, args.range)
+    if recorded is None:
+        raise ValueError(f"range {args.range} of {args.replay} has not finished")
+    if args.trial in ("failure", "success"):
+        hits = np.flatnonzero(recorded["success"] == (args.trial == "success"))
+        if hits.size == 0:
+            raise ValueError(f"range {args.range} of {args.replay} has no {args.trial}")
+        index = int(hits[0])
+    elif args.trial.isdigit() and int(args.trial) < config.trials:
+        index = int(args.trial)
+    else:
+        raise ValueError(
+            f"--trial must be failure, success or an index below {config.trials}, "
+            f"got {args.trial!r}"
+        )
+    if config.policy == "baseline":
+        policy = "baseline"
+    elif policy_dir is None:
+        raise ValueError(f"{args.replay}/config.json does not say where its policy is")
+    else:
+        policy = policy_dir
+    label, controller = _controller(policy)
+    if label != config.policy:
+        raise ValueError(
+            f"{policy}/policy.npz has changed since the evaluation ({config.policy[:19]})"
+        )
+    specs = evaluate.range_specs(config, args.range)
+    params = controller(specs)[index : index + 1]  # the whole range, as the evaluation computed it
+    linear_mm, angular_deg = config.ranges[args.range]
+    shape = scene.SHAPES[int(specs.shape_id[index])]
+    text = (
+        f"{args.replay} range {args.range} (±{linear_mm:g} mm / ±{angular_deg:g} deg) trial "
+        f"{index}: {shape} {config.size_mm:g} mm, policy {policy}"
+    )
+    trial = {k: recorded[k][index] for k in ("success", "time_s", "steps")}
+    trial["engine"] = config.engine
+    return specs.take([index]), params, TrialConfig(time_limit_s=config.time_limit_s), text, trial
+
+
+def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: int) -> dict:
+    """Run one trial on the C MuJoCo engine, recording the tip, the wrench and snapshots."""
+    from mjx_peg.engines import mujoco as engine
+    from mjx_peg.trial import as_controller_params
+
+    params = as_controller_params(vector, 1)
     every = max(1, int(round(0.25 / config.timestep)))
     trace = {"t": [], "tip": [], "wrench": []}
     snapshots, last = [], []
@@ -57,14 +171,14 @@ def run_demo(args) -> dict:
         trace["wrench"].append(wrench[0].copy())
         _, d, _ = worker.current[0]
         last[:] = [(step * config.timestep, d.qpos.copy())]
-        if args.frames and step % every == 0:
+        if frames and step % every == 0:
             snapshots.append(last[0])
 
     result = engine.run_trials(
         specs, params, config, threads=1, slots_per_thread=1, observer=observe
     )
     trace = {k: np.asarray(v) for k, v in trace.items()}
-    if args.frames and last and (not snapshots or snapshots[-1][0] != last[0][0]):
+    if frames and last and (not snapshots or snapshots[-1][0] != last[0][0]):
         snapshots.append(last[0])
     return {"specs": specs, "result": result, "trace": trace, "snapshots": snapshots}
 
@@ -97,7 +211,7 @@ def _plot(run: dict, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
-def _frames(run: dict, args, path: pathlib.Path) -> None:
+def _frames(run: dict, frames: int, path: pathlib.Path) -> None:
     """A strip of close-up frames around the hole at evenly spaced moments of the trial."""
     import mujoco
 
@@ -106,14 +220,14 @@ def _frames(run: dict, args, path: pathlib.Path) -> None:
     specs, snaps = run["specs"], run["snapshots"]
     if not snaps:
         return
-    model = scene.load_model(args.shape, args.size / 1000.0)
+    model = scene.load_model(scene.SHAPES[int(specs.shape_id[0])], float(specs.size[0]))
     scene.set_board_pose(model, *specs.board_pos[0], specs.board_yaw[0])
     scene.set_grasp(model, *specs.grasp_error[0])
     data = mujoco.MjData(model)
     camera = mujoco.MjvCamera()
     camera.lookat[:] = (*specs.board_pos[0], scene.HOLE_DEPTH + 0.03)
     camera.distance, camera.elevation, camera.azimuth = 0.45, -25.0, 200.0
-    picks = np.linspace(0, len(snaps) - 1, min(args.frames, len(snaps))).round().astype(int)
+    picks = np.linspace(0, len(snaps) - 1, min(frames, len(snaps))).round().astype(int)
     tiles = []
     for i in picks:
         _, qpos = snaps[i]
@@ -123,24 +237,40 @@ def _frames(run: dict, args, path: pathlib.Path) -> None:
     save_png(path, np.concatenate(tiles, axis=1))
 
 
+def _outcome(success, time_s) -> str:
+    return f"{'success' if success else 'failure'} after {float(time_s):.3f} s"
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    if not (args.size > 0 and np.isfinite(args.size)):
-        _parser().error(f"--size must be a positive number of mm, got {args.size}")
-    if args.linear_mm < 0 or args.angular_deg < 0:
-        _parser().error("error ranges must be >= 0")
-    if args.time_limit <= 0:
-        _parser().error("--time-limit must be positive")
+    try:
+        if args.frames < 0:
+            raise ValueError("--frames must be >= 0")
+        if args.replay is None:
+            if args.range is not None or args.trial != "0":
+                raise ValueError("--range and --trial need --replay EVAL_DIR")
+            specs, vector, config, label = trial_from_args(args)
+            recorded = None
+        else:
+            specs, vector, config, label, recorded = trial_from_eval(args)
+    except ValueError as exc:
+        print(f"python -m mjx_peg.demo: error: {exc}", file=sys.stderr)
+        return 2
     os.environ.setdefault("MUJOCO_GL", "egl")
     args.out.mkdir(parents=True, exist_ok=True)
-    run = run_demo(args)
+    run = run_demo(specs, vector, config, args.frames)
     _plot(run, args.out / "trial.png")
-    _frames(run, args, args.out / "frames.png")
-    print(
-        f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
-        f"{run['result'].summary()}; wrote {args.out}/trial.png and frames.png"
-    )
-    return 0
+    _frames(run, args.frames, args.out / "frames.png")
+    print(f"{label}: {run['result'].summary()}; wrote {args.out}/trial.png and frames.png")
+    if recorded is None:
+        return 0
+    r = run["result"]
+    now = _outcome(r.success[0], r.time_s[0])
+    then = _outcome(recorded["success"], recorded["time_s"])
+    same = now == then and int(r.steps[0]) == int(recorded["steps"])
+    engine = "" if recorded["engine"] == "mujoco" else f" on {recorded['engine']}"
+    print(f"replay: {now}; the evaluation{engine}: {then} ({'the same' if same else 'DIFFERENT'})")
+    return 0 if same else 1
 
 
 if __name__ == "__main__":

@@ -261,6 +261,21 @@ def prepare_out_dir(out_dir, config: EvalConfig, policy_dir: str | None = None) 
     return out
 
 
+def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
+    """(config, policy run directory or None for the baseline) of an evaluation directory."""
+    path = Path(eval_dir) / CONFIG_FILE
+    if not path.is_file():
+        raise ValueError(f"{eval_dir} holds no {CONFIG_FILE}: not an evaluation directory")
+    try:
+        doc = json.loads(path.read_text())
+        if doc.get("schema") != SCHEMA:
+            raise ValueError
+        config = EvalConfig(**doc["config"])
+    except (OSError, ValueError, KeyError, TypeError):
+        raise ValueError(f"{path} is not an mjx-peg evaluation config") from None
+    return config, doc.get("policy_dir")
+
+
 def _range_path(out: Path, index: int) -> Path:
     return out / RANGES_DIR / f"{index:05d}.npz"
 
