@@ -16,6 +16,7 @@ import functools
 
 import numpy as np
 
+TORQUE_LIMITS = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)  # N m, the UR5e's joint torque limits
 D1, A2, A3, D4, D5, D6 = 0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996  # m
 DH_D = np.array([D1, 0.0, 0.0, D4, D5, D6])
 DH_A = np.array([0.0, A2, A3, 0.0, 0.0, 0.0])

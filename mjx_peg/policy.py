@@ -48,7 +48,10 @@ class Policy:
 
     def controller_vectors(self, specs) -> np.ndarray:
         """(B, 38) physical parameter vectors for the trials of a `TrialSpec`."""
-        obs = observation.observe_specs(specs)
+        return self.vectors_for(observation.observe_specs(specs))
+
+    def vectors_for(self, obs) -> np.ndarray:
+        """(B, 38) physical parameter vectors for (B, 8) observations (`observation.observe`)."""
         return np.asarray(policy_net.controller_vector(self.act(obs)), dtype=np.float64)
 
 

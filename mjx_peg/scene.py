@@ -68,6 +68,8 @@ if "MUJOCO_GL" not in os.environ and not (
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from mjx_peg import kinematics  # noqa: E402
+
 SHAPES = ("circle", "square", "triangle")
 HOLE_DEPTH = 0.08  # m, board thickness (the hole runs through it)
 PEG_LENGTH = 0.15  # m: 80 mm in the hole leaves the flange 70 mm above the board top
@@ -83,7 +85,7 @@ JOINT_NAMES = (
     "wrist_3_joint",
 )
 ACTUATOR_NAMES = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
-TORQUE_LIMITS = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)  # N m
+TORQUE_LIMITS = kinematics.TORQUE_LIMITS  # N m
 PEG_MASS = 0.3  # kg
 BOARD_MIN_HALF_WIDTH = 0.1  # m: inradius of the board's outer outline (at least)
 BOARD_MIN_WALL = 0.05  # m: wall thickness around the hole (at least)
@@ -394,6 +396,20 @@ def set_friction(model: mujoco.MjModel, mu: float) -> None:
     """Peg-board sliding friction: geom_friction[:, 0] = mu on every peg and board geom."""
     ids = np.concatenate([peg_geom_ids(model), board_geom_ids(model)])
     model.geom_friction[ids, 0] = mu
+
+
+def start_trial(model, data, ids, board_xy, board_yaw, grasp_error, friction, q0) -> None:
+    """Set up one trial in `model`/`data`: board pose, grasp error, friction, the arm at rest at
+    `q0` and held still by gravity compensation in `data.ctrl`; kinematics and sensors computed
+    (the F/T reading is then the tare)."""
+    set_board_pose(model, float(board_xy[0]), float(board_xy[1]), float(board_yaw))
+    set_grasp(model, *(float(v) for v in grasp_error))
+    set_friction(model, float(friction))
+    mujoco.mj_resetData(model, data)
+    data.qpos[ids.qpos_adr] = q0
+    mujoco.mj_forward(model, data)
+    data.ctrl[ids.actuator_ids] = data.qfrc_bias[ids.dof_adr] - data.qfrc_passive[ids.dof_adr]
+    mujoco.mj_forward(model, data)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -254,15 +254,8 @@ class _Batch:
         if env.layout != lay:
             raise ValueError(f"scene {key} has layout {env.layout}, not {lay}")
         m, d, ids = env.model, env.data, env.ids
-        scene.set_board_pose(m, *s.board_pos[index], s.board_yaw[index])
-        scene.set_grasp(m, *s.grasp_error[index])
-        scene.set_friction(m, s.friction[index])
-        mujoco.mj_resetData(m, d)
-        env.qpos[ids.qpos_adr] = s.q0[index]
-        mujoco.mj_forward(m, d)
-        # Hold still (gravity compensation) and tare.
-        env.ctrl[:] = env.qfrc_bias[ids.dof_adr] - env.qfrc_passive[ids.dof_adr]
-        mujoco.mj_forward(m, d)
+        scene.start_trial(m, d, ids, s.board_pos[index], s.board_yaw[index],
+                          s.grasp_error[index], s.friction[index], s.q0[index])  # fmt: skip
         sd = env.sensordata
         self.tare[row, :3] = sd[lay.force_adr : lay.force_adr + 3]
         self.tare[row, 3:] = sd[lay.torque_adr : lay.torque_adr + 3]

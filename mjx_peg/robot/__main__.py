@@ -1,0 +1,5 @@
+import sys
+
+from mjx_peg.robot.cli import main
+
+sys.exit(main())

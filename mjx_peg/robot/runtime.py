@@ -1,0 +1,195 @@
+"""The learned skill as a control loop: hole estimate -> 38 numbers -> torques, every period.
+
+    runtime = SkillRuntime(controller_vector("runs/paper", hole), hole)
+    run = run_skill(arm, runtime, time_limit_s=60.0)
+
+`SkillRuntime` holds one insertion: the goal from the estimated hole (as in `trial.trial_goals`),
+the tare and the DMP's start taken at the first reading, then `controller.skill_torque` on each
+reading. It stops the skill (`SafetyStop`) on a non-finite measurement or torque, a joint faster
+than `TrialConfig.max_joint_speed` (twice the UR5e's 180 deg/s, where the real arm would
+protective-stop; the engines count such a trial as failed, `unstable`) or a clock that runs
+backwards. The math runs on arrays with a leading batch dimension of 1, so it takes the same
+NumPy kernels as the engines' batches and a simulated run matches the engine bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from mjx_peg import kinematics, observation
+from mjx_peg.baseline import baseline_params
+from mjx_peg.controller import make_skill, skill_torque, start_state, wrench_in_goal_frame
+from mjx_peg.params import ControllerParams
+from mjx_peg.policy import load_policy
+from mjx_peg.robot.arm import Arm, ArmState
+from mjx_peg.trial import TrialConfig, as_controller_params, fitted_basis, trial_goals
+
+
+class SafetyStop(RuntimeError):
+    """The skill must stop now (one line says why)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HoleEstimate:
+    """Where the skill believes the hole is: centre x, y (m), yaw (rad), shape, size S (m)."""
+
+    x: float
+    y: float
+    yaw: float
+    shape: str
+    size: float
+
+    def __post_init__(self):
+        if self.shape not in observation.SHAPE_NAMES:
+            raise ValueError(
+                f"hole shape must be one of {observation.SHAPE_NAMES}, got {self.shape!r}"
+            )
+        for name in ("x", "y", "yaw", "size"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(
+                    f"hole {name} must be a finite number, got {getattr(self, name)!r}"
+                )
+        if self.size <= 0:
+            raise ValueError(f"hole size must be positive (m), got {self.size!r}")
+
+    def observation(self) -> np.ndarray:
+        """(1, 8) policy observation of this estimate."""
+        return observation.observe(
+            np.array([observation.SHAPE_NAMES.index(self.shape)]),
+            np.array([self.size]),
+            np.array([[self.x, self.y]]),
+            np.array([self.yaw]),
+        )
+
+
+def controller_vector(policy: str, hole: HoleEstimate) -> np.ndarray:
+    """(38,) controller numbers for `hole` from a run directory's policy.npz, or 'baseline'."""
+    if policy == "baseline":
+        return baseline_params()
+    return load_policy(policy).vectors_for(hole.observation())[0]
+
+
+class SkillRuntime:
+    """One insertion with fixed controller numbers; `start` at the first reading, then `torque`."""
+
+    def __init__(self, vector, hole: HoleEstimate, config: TrialConfig | None = None):
+        self.config = cfg = config or TrialConfig()
+        p = as_controller_params(vector, 1)
+        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
+        self.hole = hole
+        self.basis = fitted_basis(cfg.dmp)
+        self.goal_pos, self.goal_rot = trial_goals(
+            np.array([[hole.x, hole.y]]), np.array([hole.yaw]), cfg
+        )
+        self.limits = np.asarray(kinematics.TORQUE_LIMITS)
+        self.skill = None
+        self.tare = np.zeros((1, 6))
+        self.t0 = self.last_t = 0.0
+        self.wrench = np.zeros(6)  # the last wrench the compliance saw (goal frame)
+
+    def start(self, state: ArmState) -> None:
+        """Tare the F/T reading, take the DMP's start y0 from the tcp pose, start the clock."""
+        self.check(state)
+        self.tare = np.concatenate([state.force, state.torque])[None]
+        y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
+        self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
+        self.t0 = self.last_t = state.t
+
+    def elapsed(self, state: ArmState) -> float:
+        return state.t - self.t0
+
+    def check(self, state: ArmState) -> None:
+        """Raise SafetyStop unless the reading is finite, slow enough and later than the last."""
+        if not all(np.all(np.isfinite(v)) for v in state):
+            raise SafetyStop("a measurement is NaN or infinite")
+        speed = float(np.abs(state.qd).max())
+        if speed >= self.config.max_joint_speed:
+            raise SafetyStop(
+                f"joint speed {speed:.2f} rad/s reached the limit {self.config.max_joint_speed:.2f}"
+            )
+        if state.t < self.last_t:
+            raise SafetyStop(
+                f"the arm's clock went back from {self.last_t:.3f} s to {state.t:.3f} s"
+            )
+        self.last_t = state.t
+
+    def torque(self, state: ArmState) -> np.ndarray:
+        """(6,) joint torques for this reading (N m, clamped to the UR5e's limits)."""
+        if self.skill is None:
+            raise RuntimeError("SkillRuntime.torque before start")
+        self.check(state)
+        cfg, b = self.config, lambda a: a[None]
+        wrench = wrench_in_goal_frame(
+            b(state.force), b(state.torque), self.tare, b(state.ft_rot),
+            b(state.ft_pos - state.tcp_pos), self.goal_rot,
+        )  # fmt: skip
+        u = skill_torque(
+            self.skill, self.basis, np.array([self.elapsed(state)]), b(state.tcp_pos),
+            b(state.tcp_rot), b(state.jac), (b(state.jac_dot) @ state.qd[None, :, None])[..., 0],
+            b(state.qd), b(state.mass), b(state.bias), wrench, self.limits, cfg.dmp.tau,
+            cfg.dmp.alpha_s, cfg.dmp.k_ref, cfg.pinv_damping,
+        )[0]  # fmt: skip
+        if not np.all(np.isfinite(u)):
+            raise SafetyStop("the controller returned a non-finite torque")
+        self.wrench = wrench[0]
+        return u
+
+    def inserted(self, state: ArmState) -> bool:
+        """The tcp (nominal tip) is inside the estimated hole's footprint near the table."""
+        lateral = math.hypot(state.tcp_pos[0] - self.hole.x, state.tcp_pos[1] - self.hole.y)
+        return bool(state.tcp_pos[2] < self.config.success_height and lateral < self.hole.size)
+
+
+@dataclasses.dataclass(frozen=True)
+class SkillRun:
+    """How a run of the skill ended, and what each command period saw."""
+
+    success: bool
+    time_s: float  # at success, else when it stopped
+    stopped: str  # "" unless a SafetyStop ended it
+    log: dict[str, np.ndarray]  # t (s), tcp_pos (m), wrench (goal frame), torque (N m)
+
+    @property
+    def commands(self) -> int:
+        return int(self.log["t"].shape[0])
+
+
+def run_skill(
+    arm: Arm,
+    runtime: SkillRuntime,
+    time_limit_s: float | None = None,
+    done: Callable[[ArmState], bool] | None = None,
+) -> SkillRun:
+    """Drive `arm` with `runtime` until `done(state)` (default: `runtime.inserted`) or the time
+    limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm."""
+    limit = runtime.config.time_limit_s if time_limit_s is None else time_limit_s
+    if not (math.isfinite(limit) and limit > 0):
+        raise ValueError(f"the time limit must be a positive number of seconds, got {limit!r}")
+    done = done or runtime.inserted
+    log = {"t": [], "tcp_pos": [], "wrench": [], "torque": []}
+    stopped, success = "", False
+    state = arm.read()
+    try:
+        runtime.start(state)
+        while True:
+            elapsed = runtime.elapsed(state)
+            runtime.check(state)
+            if done(state):
+                success = True
+                break
+            if elapsed >= limit - 1e-3 * arm.period:
+                break
+            u = runtime.torque(state)
+            arm.send(u)
+            for key, value in zip(log, (elapsed, state.tcp_pos, runtime.wrench, u), strict=True):
+                log[key].append(value)
+            state = arm.read()
+    except SafetyStop as stop:
+        arm.hold()
+        stopped = str(stop)
+    arrays = {k: np.asarray(v, dtype=np.float64) for k, v in log.items()}
+    return SkillRun(success, runtime.elapsed(state), stopped, arrays)

@@ -1,0 +1,98 @@
+"""A simulated UR5e behind the `Arm` interface: one trial of a `TrialSpec` in C MuJoCo.
+
+The physics steps at the scene's 2 ms. `command_steps` physics steps pass between two commands
+and the torque is held in between (zero-order hold), as a robot that takes effort commands at a
+lower rate than it senses: 1 is the 500 Hz of training and evaluation, 4 the 125 Hz at which the
+paper's UR5e took effort commands. Each `read` runs `mj_step1` (fresh kinematics, mass matrix and
+bias; the F/T sensor still holds the previous step's reading, as on a real robot) and `send` runs
+`mj_step2`, then `mj_step` for the rest of the command period: at `command_steps=1` this is the
+C engine's step, so a run of the runtime on this arm ends as the engine's trial.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from mjx_peg import scene
+from mjx_peg.robot.arm import ArmState
+from mjx_peg.task import TrialSpec
+from mjx_peg.trial import is_success
+
+
+class SimArm:
+    """Trial `index` of `specs` set up and held still, ready for the skill."""
+
+    def __init__(self, specs: TrialSpec, index: int = 0, command_steps: int = 1,
+                 success_height: float = 0.02):  # fmt: skip
+        if (
+            isinstance(command_steps, bool)
+            or not isinstance(command_steps, int)
+            or command_steps < 1
+        ):
+            raise ValueError(f"command_steps must be a positive integer, got {command_steps!r}")
+        if not 0 <= index < len(specs):
+            raise ValueError(f"trial index {index} is outside the {len(specs)} trials")
+        shape, size = scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
+        self.model = m = scene.load_model(shape, size)
+        self.data = d = mujoco.MjData(m)
+        self.ids = ids = scene.scene_ids(m)
+        s = specs.take([index])
+        scene.start_trial(
+            m, d, ids, s.board_pos[0], s.board_yaw[0], s.grasp_error[0], s.friction[0], s.q0[0]
+        )
+        self.hold_torque = d.ctrl[ids.actuator_ids].copy()
+        self.command_steps = command_steps
+        self.period = command_steps * float(m.opt.timestep)
+        self.board_pos, self.size = specs.board_pos[index], float(specs.size[index])
+        self.success_height = success_height
+        self.steps = 0  # physics steps since the set-up
+        nv = m.nv
+        self._jl, self._ja = np.zeros((3, nv)), np.zeros((3, nv))
+        self._jdl, self._jda = np.zeros((3, nv)), np.zeros((3, nv))
+        self._mass = np.zeros((nv, nv))
+
+    def read(self) -> ArmState:
+        m, d, ids = self.model, self.data, self.ids
+        mujoco.mj_step1(m, d)
+        tcp = ids.tcp_site
+        mujoco.mj_jacSite(m, d, self._jl, self._ja, tcp)
+        mujoco.mj_jacDot(m, d, self._jdl, self._jda, d.site_xpos[tcp], ids.wrist3_body)
+        mujoco.mj_fullM(m, d, self._mass)
+        dof = ids.dof_adr
+        sd, fa, ta = d.sensordata, ids.ft_force_adr, ids.ft_torque_adr
+        return ArmState(
+            t=self.steps * float(m.opt.timestep),  # the step count: d.time accumulates rounding
+            q=d.qpos[ids.qpos_adr].copy(),
+            qd=d.qvel[dof].copy(),
+            tcp_pos=d.site_xpos[tcp].copy(),
+            tcp_rot=d.site_xmat[tcp].reshape(3, 3).copy(),
+            jac=np.concatenate([self._jl, self._ja])[:, dof],
+            jac_dot=np.concatenate([self._jdl, self._jda])[:, dof],
+            mass=self._mass[np.ix_(dof, dof)].copy(),
+            bias=d.qfrc_bias[dof] - d.qfrc_passive[dof],  # with the joints' damping
+            force=sd[fa : fa + 3].copy(),
+            torque=sd[ta : ta + 3].copy(),
+            ft_pos=d.site_xpos[ids.ft_site].copy(),
+            ft_rot=d.site_xmat[ids.ft_site].reshape(3, 3).copy(),
+        )
+
+    def send(self, torque: np.ndarray) -> None:
+        m, d = self.model, self.data
+        d.ctrl[self.ids.actuator_ids] = np.where(np.isfinite(torque), torque, 0.0)
+        mujoco.mj_step2(m, d)
+        if self.command_steps > 1:
+            mujoco.mj_step(m, d, nstep=self.command_steps - 1)
+        self.steps += self.command_steps
+
+    def hold(self) -> None:
+        """Hold the start's gravity-compensation torques (the sim's protective stop)."""
+        self.data.ctrl[self.ids.actuator_ids] = self.hold_torque
+
+    def tip_pos(self) -> np.ndarray:
+        """(3,) the true peg tip (site `peg_tip`), which a real robot cannot measure."""
+        return self.data.site_xpos[self.ids.tip_site].copy()
+
+    def inserted(self, state: ArmState | None = None) -> bool:
+        """The trial's success test on the true tip (as the engines judge it)."""
+        return bool(is_success(self.tip_pos(), self.board_pos, self.size, self.success_height))

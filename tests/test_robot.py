@@ -1,0 +1,243 @@
+"""The robot runtime (`mjx_peg.robot`): the engine's trial on the simulated arm, command rates,
+safety stops, the policy's numbers, no JAX, and one-line errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from mjx_peg import scene
+from mjx_peg.baseline import baseline_params
+from mjx_peg.engines import mujoco as cpu_engine
+from mjx_peg.policy import load_policy, save_policy
+from mjx_peg.robot import cli
+from mjx_peg.robot.runtime import (
+    HoleEstimate,
+    SafetyStop,
+    SkillRuntime,
+    controller_vector,
+    run_skill,
+)
+from mjx_peg.robot.sim_arm import SimArm
+from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.trial import TrialConfig, as_controller_params
+
+SHORT = TrialConfig(time_limit_s=3.0)
+
+
+def _specs(n=4, seed=3, linear_mm=2.0, angular_deg=2.0):
+    task = TaskConfig(
+        shapes=("circle", "square"),
+        linear_error=linear_mm / 1000.0,
+        angular_error=np.deg2rad(angular_deg),
+    )
+    return sample_trials(task, seed, n)
+
+
+def _hole(specs, i):
+    return cli._hole(specs, i)
+
+
+def test_simulated_arm_runs_the_engines_trial():
+    """At 500 Hz the runtime on SimArm is the C engine's trial: the same free-space motion to
+    1e-12 m and the same outcomes. (The wrench differs from the engine's batched arithmetic in
+    the last bit, ~1e-16 N; contact can amplify that, so positions after contact agree to 1 mm,
+    not to the bit.)"""
+    specs, vec = _specs(), baseline_params()
+    engine_tcp = []
+    result = cpu_engine.run_trials(
+        specs.take([0]), as_controller_params(vec, 1), SHORT, workers=1,
+        observer=lambda batch, rows, wrench: engine_tcp.append(batch.tcp_pos[0].copy()),
+    )  # fmt: skip
+    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), SHORT, workers=1)
+    assert results.success.any() and not results.success.all()  # both outcomes are compared
+    for i in range(len(specs)):
+        arm = SimArm(specs, i)
+        run = run_skill(arm, SkillRuntime(vec, _hole(specs, i), SHORT), done=arm.inserted)
+        assert run.success == results.success[i] and run.stopped == ""
+        assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
+        assert run.commands == results.steps[i]
+        np.testing.assert_allclose(arm.tip_pos(), results.final_tip_pos[i], atol=1e-3)
+        if i == 0:
+            assert result.steps[0] == run.commands
+            np.testing.assert_allclose(run.log["tcp_pos"][:200], np.array(engine_tcp)[:200],
+                                       atol=1e-12, rtol=0)  # fmt: skip
+
+
+def test_command_rate_holds_the_torque_between_commands():
+    specs, vec = _specs(n=1), baseline_params()
+    arm = SimArm(specs, 0, command_steps=4)
+    sent = []
+    send = arm.send
+
+    def spy(torque):
+        before = arm.steps
+        send(torque)
+        sent.append((before, arm.steps, arm.data.ctrl.copy(), torque.copy()))
+
+    arm.send = spy
+    run = run_skill(arm, SkillRuntime(vec, _hole(specs, 0), SHORT), 0.5, done=lambda s: False)
+    assert arm.period == pytest.approx(0.008)
+    assert run.commands == 63 and len(sent) == 63  # ceil(0.5 s / 8 ms)
+    np.testing.assert_allclose(np.diff(run.log["t"]), 0.008, atol=1e-12)
+    for before, after, ctrl, torque in sent:
+        assert after - before == 4
+        np.testing.assert_array_equal(ctrl, torque)  # held through the whole period
+    assert run.time_s == pytest.approx(0.504)
+
+
+class _FakeArm:
+    """Replays one good reading; `spoil(state, k)` alters the k-th."""
+
+    period = 0.002
+
+    def __init__(self, spoil):
+        specs = _specs(n=1)
+        sim = SimArm(specs, 0)
+        self.state, self.spoil, self.k, self.held = sim.read(), spoil, 0, False
+        self.hole = _hole(specs, 0)
+
+    def read(self):
+        state = self.state._replace(t=self.k * self.period)
+        state = self.spoil(state, self.k)
+        self.k += 1
+        return state
+
+    def send(self, torque):
+        assert np.all(np.isfinite(torque)) and np.all(np.abs(torque) <= 150.0)
+
+    def hold(self):
+        self.held = True
+
+
+@pytest.mark.parametrize(
+    "spoil, message",
+    [
+        (lambda s, k: s._replace(qd=s.qd + (7.0 if k == 3 else 0.0)),
+         "joint speed 7.00 rad/s reached the limit 6.28"),
+        (lambda s, k: s._replace(force=s.force * (np.nan if k == 5 else 1.0)),
+         "a measurement is NaN or infinite"),
+        (lambda s, k: s._replace(t=0.0 if k == 4 else s.t),
+         "the arm's clock went back from 0.006 s to 0.000 s"),
+    ],
+)  # fmt: skip
+def test_safety_stop_holds_the_arm(spoil, message):
+    arm = _FakeArm(spoil)
+    run = run_skill(arm, SkillRuntime(baseline_params(), arm.hole, SHORT), done=lambda s: False)
+    assert not run.success and run.stopped == message and arm.held
+    assert run.commands == arm.k - 1  # no command after the bad reading
+
+
+def test_runtime_stops_on_a_non_finite_torque(monkeypatch):
+    from mjx_peg.robot import runtime as module
+
+    arm = _FakeArm(lambda s, k: s)
+    runtime = SkillRuntime(baseline_params(), arm.hole, SHORT)
+    runtime.start(arm.read())
+    assert np.all(np.isfinite(runtime.torque(arm.read())))
+    monkeypatch.setattr(module, "skill_torque", lambda *a: np.full((1, 6), np.nan))
+    with pytest.raises(SafetyStop, match="the controller returned a non-finite torque"):
+        runtime.torque(arm.read())
+
+
+def test_policy_numbers_are_the_evaluations(tmp_path):
+    """Asked with the hole estimate alone, the policy gives the robot the evaluation's numbers."""
+    rng = np.random.default_rng(0)
+    layers = [(rng.normal(size=(8, 16)) * 0.3, rng.normal(size=16) * 0.1),
+              (rng.normal(size=(16, 38)) * 0.3, rng.normal(size=38) * 0.1)]  # fmt: skip
+    save_policy(tmp_path, layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8), config={})
+    specs = _specs(n=5)
+    expected = load_policy(tmp_path).controller_vectors(specs)
+    for i in range(len(specs)):  # to rounding: a batch of 1 takes other BLAS kernels than 5
+        got = controller_vector(str(tmp_path), _hole(specs, i))
+        np.testing.assert_allclose(got, expected[i], rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(controller_vector("baseline", _hole(specs, 0)), baseline_params())
+
+
+def test_runtime_inserted_uses_the_estimated_hole():
+    hole = HoleEstimate(0.4, 0.1, 0.0, "circle", 0.05)
+    runtime = SkillRuntime(baseline_params(), hole, SHORT)
+    state = _FakeArm(lambda s, k: s).state
+    assert runtime.inserted(state._replace(tcp_pos=np.array([0.42, 0.1, 0.019])))
+    assert not runtime.inserted(state._replace(tcp_pos=np.array([0.42, 0.1, 0.021])))
+    assert not runtime.inserted(state._replace(tcp_pos=np.array([0.46, 0.1, 0.0])))
+
+
+def test_robot_runtime_imports_no_jax(tmp_path):
+    """The robot's computer runs the runtime without JAX, Flax, Brax, Optax or Orbax."""
+    code = (
+        "import sys\n"
+        "from mjx_peg.robot import cli\n"
+        f"assert cli.main(['--trials', '1', '--time-limit', '0.05', '--no-progress', "
+        f"'--out', {str(tmp_path)!r}]) == 0\n"
+        "bad = sorted({m.split('.')[0] for m in sys.modules} & "
+        "{'jax', 'jaxlib', 'flax', 'brax', 'optax', 'orbax'})\n"
+        "assert not bad, bad\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "runs.csv").read_text().startswith("trial,success,time_s,commands,stopped")
+
+
+def test_cli_runs_and_reports(tmp_path, capsys):
+    argv = ["--trials", "2", "--time-limit", "0.5", "--command-hz", "250", "--no-progress"]
+    assert cli.main([*argv, "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "baseline on the simulated arm at 250 Hz commands, circle 50 mm" in out
+    rows = (tmp_path / "runs.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[1].split(",")[3] == "125"  # 0.5 s at 250 Hz, not inserted
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--command-hz", "300"], "--command-hz must divide the 500 Hz physics"),
+        (["--command-hz", "0"], "--command-hz must be in (0, 500]"),
+        (["--trials", "0"], "--trials must be >= 1, got 0"),
+        (["--policy", "no/such/run"], "--policy no/such/run: no such run directory"),
+        (["--size", "-5"], "--size must be a positive number of mm"),
+        (["--time-limit", "nan"], "--time-limit must be a positive number of seconds"),
+        (["--shape", "hexagon"], "argument --shape: invalid choice"),
+    ],
+)
+def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
+    with pytest.raises(SystemExit) if argv[0] == "--shape" else _no_raise() as caught:
+        code = cli.main([*argv, "--out", str(tmp_path)])
+    if argv[0] == "--shape":
+        code = caught.value.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and message in err and len(err.splitlines()) == 1
+
+
+class _no_raise:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"shape": "hexagon"}, "hole shape must be one of"),
+        ({"size": 0.0}, "hole size must be positive"),
+        ({"x": float("nan")}, "hole x must be a finite number"),
+    ],
+)
+def test_hole_estimate_rejects_bad_values(kwargs, message):
+    good = {"x": 0.4, "y": 0.1, "yaw": 0.0, "shape": "circle", "size": 0.05}
+    with pytest.raises(ValueError, match=message):
+        HoleEstimate(**{**good, **kwargs})
+
+
+def test_sim_arm_rejects_bad_arguments():
+    specs = _specs(n=1)
+    with pytest.raises(ValueError, match="command_steps must be a positive integer"):
+        SimArm(specs, 0, command_steps=0)
+    with pytest.raises(ValueError, match="trial index 1 is outside the 1 trials"):
+        SimArm(specs, 1)
+    assert scene.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
