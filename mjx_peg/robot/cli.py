@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import scene
-from mjx_peg.policy import PolicyError
+from mjx_peg.policy import PolicyError, load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.task import TaskConfig, sample_trials
@@ -99,7 +99,8 @@ def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     try:
         specs, steps = _setup(args)
-        vectors = [controller_vector(args.policy, _hole(specs, i)) for i in range(len(specs))]
+        policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
+        vectors = [controller_vector(policy, _hole(specs, i)) for i in range(len(specs))]
     except (ValueError, PolicyError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2

@@ -26,7 +26,7 @@ from mjx_peg import kinematics, observation
 from mjx_peg.baseline import baseline_params
 from mjx_peg.controller import make_skill, skill_torque, start_state, wrench_in_goal_frame
 from mjx_peg.params import ControllerParams
-from mjx_peg.policy import load_policy
+from mjx_peg.policy import Policy, load_policy
 from mjx_peg.robot.arm import Arm, ArmState
 from mjx_peg.trial import TrialConfig, as_controller_params, fitted_basis, trial_goals
 
@@ -68,11 +68,14 @@ class HoleEstimate:
         )
 
 
-def controller_vector(policy: str, hole: HoleEstimate) -> np.ndarray:
-    """(38,) controller numbers for `hole` from a run directory's policy.npz, or 'baseline'."""
-    if policy == "baseline":
-        return baseline_params()
-    return load_policy(policy).vectors_for(hole.observation())[0]
+def controller_vector(policy: str | Policy, hole: HoleEstimate) -> np.ndarray:
+    """(38,) controller numbers for `hole` from a loaded `Policy`, a run directory holding
+    policy.npz, or 'baseline'."""
+    if isinstance(policy, str):
+        if policy == "baseline":
+            return baseline_params()
+        policy = load_policy(policy)
+    return policy.vectors_for(hole.observation())[0]
 
 
 class SkillRuntime:

@@ -23,28 +23,24 @@ from mjx_peg.trial import is_success
 class SimArm:
     """Trial `index` of `specs` set up and held still, ready for the skill."""
 
-    def __init__(self, specs: TrialSpec, index: int = 0, command_steps: int = 1,
-                 success_height: float = 0.02):  # fmt: skip
-        if (
-            isinstance(command_steps, bool)
-            or not isinstance(command_steps, int)
-            or command_steps < 1
-        ):
+    def __init__(
+        self, specs: TrialSpec, index: int = 0, command_steps: int = 1, success_height: float = 0.02
+    ):
+        if type(command_steps) is not int or command_steps < 1:
             raise ValueError(f"command_steps must be a positive integer, got {command_steps!r}")
         if not 0 <= index < len(specs):
             raise ValueError(f"trial index {index} is outside the {len(specs)} trials")
-        shape, size = scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
-        self.model = m = scene.load_model(shape, size)
+        s = specs.take([index])
+        self.board_pos, self.size = s.board_pos[0], float(s.size[0])
+        self.model = m = scene.load_model(scene.SHAPES[int(s.shape_id[0])], self.size)
         self.data = d = mujoco.MjData(m)
         self.ids = ids = scene.scene_ids(m)
-        s = specs.take([index])
         scene.start_trial(
             m, d, ids, s.board_pos[0], s.board_yaw[0], s.grasp_error[0], s.friction[0], s.q0[0]
         )
         self.hold_torque = d.ctrl[ids.actuator_ids].copy()
         self.command_steps = command_steps
         self.period = command_steps * float(m.opt.timestep)
-        self.board_pos, self.size = specs.board_pos[index], float(specs.size[index])
         self.success_height = success_height
         self.steps = 0  # physics steps since the set-up
         nv = m.nv
