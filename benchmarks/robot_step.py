@@ -20,8 +20,7 @@ import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
 from mjx_peg.baseline import baseline_params
-from mjx_peg.robot.cli import _hole
-from mjx_peg.robot.runtime import SkillRuntime
+from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.task import TaskConfig, sample_trials
 
@@ -31,7 +30,7 @@ HEADING = "## Robot runtime"
 def measure(calls: int) -> dict:
     specs = sample_trials(TaskConfig(linear_error=0.002, angular_error=0.03), 0, 1)
     arm = SimArm(specs, 0)
-    runtime = SkillRuntime(baseline_params(), _hole(specs, 0))
+    runtime = SkillRuntime(baseline_params(), HoleEstimate.of_trial(specs, 0))
     runtime.start(arm.read())
     for _ in range(200):  # warm-up, and into the movement
         arm.send(runtime.torque(arm.read()))

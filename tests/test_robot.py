@@ -3,6 +3,7 @@ safety stops, the policy's numbers, no JAX, and one-line errors."""
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 
@@ -37,10 +38,6 @@ def _specs(n=4, seed=3, linear_mm=2.0, angular_deg=2.0):
     return sample_trials(task, seed, n)
 
 
-def _hole(specs, i):
-    return cli._hole(specs, i)
-
-
 def test_simulated_arm_runs_the_engines_trial():
     """At 500 Hz the runtime on SimArm is the C engine's trial: the same free-space motion to
     1e-12 m and the same outcomes. (The wrench differs from the engine's batched arithmetic in
@@ -56,7 +53,8 @@ def test_simulated_arm_runs_the_engines_trial():
     assert results.success.any() and not results.success.all()  # both outcomes are compared
     for i in range(len(specs)):
         arm = SimArm(specs, i)
-        run = run_skill(arm, SkillRuntime(vec, _hole(specs, i), SHORT), done=arm.inserted)
+        runtime = SkillRuntime(vec, HoleEstimate.of_trial(specs, i), SHORT)
+        run = run_skill(arm, runtime, done=arm.inserted)
         assert run.success == results.success[i] and run.stopped == ""
         assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
         assert run.commands == results.steps[i]
@@ -79,7 +77,8 @@ def test_command_rate_holds_the_torque_between_commands():
         sent.append((before, arm.steps, arm.data.ctrl.copy(), torque.copy()))
 
     arm.send = spy
-    run = run_skill(arm, SkillRuntime(vec, _hole(specs, 0), SHORT), 0.5, done=lambda s: False)
+    runtime = SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), SHORT)
+    run = run_skill(arm, runtime, 0.5, done=lambda s: False)
     assert arm.period == pytest.approx(0.008)
     assert run.commands == 63 and len(sent) == 63  # ceil(0.5 s / 8 ms)
     np.testing.assert_allclose(np.diff(run.log["t"]), 0.008, atol=1e-12)
@@ -98,7 +97,7 @@ class _FakeArm:
         specs = _specs(n=1)
         sim = SimArm(specs, 0)
         self.state, self.spoil, self.k, self.held = sim.read(), spoil, 0, False
-        self.hole = _hole(specs, 0)
+        self.hole = HoleEstimate.of_trial(specs, 0)
 
     def read(self):
         state = self.state._replace(t=self.k * self.period)
@@ -153,10 +152,12 @@ def test_policy_numbers_are_the_evaluations(tmp_path):
     loaded = load_policy(tmp_path)
     expected = loaded.controller_vectors(specs)
     for i in range(len(specs)):  # to rounding: a batch of 1 takes other BLAS kernels than 5
-        got = controller_vector(str(tmp_path), _hole(specs, i))
+        hole = HoleEstimate.of_trial(specs, i)
+        got = controller_vector(str(tmp_path), hole)
         np.testing.assert_allclose(got, expected[i], rtol=1e-12, atol=1e-15)
-        np.testing.assert_array_equal(controller_vector(loaded, _hole(specs, i)), got)
-    np.testing.assert_array_equal(controller_vector("baseline", _hole(specs, 0)), baseline_params())
+        np.testing.assert_array_equal(controller_vector(loaded, hole), got)
+    baseline = controller_vector("baseline", HoleEstimate.of_trial(specs, 0))
+    np.testing.assert_array_equal(baseline, baseline_params())
 
 
 def test_runtime_inserted_uses_the_estimated_hole():
@@ -206,20 +207,12 @@ def test_cli_runs_and_reports(tmp_path, capsys):
     ],
 )
 def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
-    with pytest.raises(SystemExit) if argv[0] == "--shape" else _no_raise() as caught:
+    with pytest.raises(SystemExit) if argv[0] == "--shape" else contextlib.nullcontext() as caught:
         code = cli.main([*argv, "--out", str(tmp_path)])
     if argv[0] == "--shape":
         code = caught.value.code
     err = capsys.readouterr().err.strip()
     assert code == 2 and message in err and len(err.splitlines()) == 1
-
-
-class _no_raise:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
 
 
 @pytest.mark.parametrize(

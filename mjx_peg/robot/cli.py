@@ -89,18 +89,13 @@ def _setup(args):
     return specs, steps
 
 
-def _hole(specs, i: int) -> HoleEstimate:
-    x, y = (float(v) for v in specs.hole_est_pos[i])
-    shape = scene.SHAPES[int(specs.shape_id[i])]
-    return HoleEstimate(x, y, float(specs.hole_est_yaw[i]), shape, float(specs.size[i]))
-
-
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     try:
         specs, steps = _setup(args)
         policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
-        vectors = [controller_vector(policy, _hole(specs, i)) for i in range(len(specs))]
+        holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
+        vectors = [controller_vector(policy, hole) for hole in holes]
     except (ValueError, PolicyError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
@@ -112,9 +107,9 @@ def main(argv=None) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=len(specs), desc="trials", unit="trial", file=sys.stderr)
-    for i, vector in enumerate(vectors):
+    for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
         arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height)
-        run = run_skill(arm, SkillRuntime(vector, _hole(specs, i), config), done=arm.inserted)
+        run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
         rows.append((i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped))
         if bar is not None:
             bar.update(1)

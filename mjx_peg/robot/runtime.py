@@ -58,6 +58,13 @@ class HoleEstimate:
         if self.size <= 0:
             raise ValueError(f"hole size must be positive (m), got {self.size!r}")
 
+    @classmethod
+    def of_trial(cls, specs, index: int) -> HoleEstimate:
+        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw, shape, size)."""
+        x, y = (float(v) for v in specs.hole_est_pos[index])
+        shape = observation.SHAPE_NAMES[int(specs.shape_id[index])]
+        return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]))
+
     def observation(self) -> np.ndarray:
         """(1, 8) policy observation of this estimate."""
         return observation.observe(
@@ -124,9 +131,13 @@ class SkillRuntime:
 
     def torque(self, state: ArmState) -> np.ndarray:
         """(6,) joint torques for this reading (N m, clamped to the UR5e's limits)."""
+        self.check(state)
+        return self._command(state)
+
+    def _command(self, state: ArmState) -> np.ndarray:
+        """`torque` for a reading that has passed `check`."""
         if self.skill is None:
             raise RuntimeError("SkillRuntime.torque before start")
-        self.check(state)
         cfg, b = self.config, lambda a: a[None]
         wrench = wrench_in_goal_frame(
             b(state.force), b(state.torque), self.tare, b(state.ft_rot),
@@ -188,7 +199,7 @@ def run_skill(
                 break
             if elapsed >= limit - 1e-3 * arm.period:
                 break
-            u = runtime.torque(state)
+            u = runtime._command(state)  # checked above
             arm.send(u)
             for key, value in zip(log, (elapsed, state.tcp_pos, runtime.wrench, u), strict=True):
                 log[key].append(value)
