@@ -25,11 +25,11 @@ import mujoco
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
-from mjx_peg import scene
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import mujoco as cpu_engine
-from mjx_peg.task import TaskConfig, sample_trials
-from mjx_peg.trial import TrialConfig, as_controller_params
+from mjx_peg.engines.trial import TrialConfig, as_controller_params
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -71,7 +71,7 @@ def _replay_part(specs, snaps, every, barrier):
     """Steps/s of bare mj_step from each snapshot for `every` steps (run in a worker process)."""
     envs, jobs = {}, []
     for index, state in snaps:
-        key = (scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index]))
+        key = (constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index]))
         if key not in envs:
             m = scene.load_model(*key)
             envs[key] = (m, mujoco.MjData(m))

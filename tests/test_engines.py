@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import run_trials
-from mjx_peg.task import TaskConfig, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 NO_ERRORS = dict(linear_error=0.0, angular_error=0.0)
 
@@ -174,10 +174,10 @@ def test_workers_exit_when_the_caller_is_killed():
 
     code = (
         "import numpy as np\n"
-        "from mjx_peg.baseline import baseline_params\n"
+        "from mjx_peg.skill.baseline import baseline_params\n"
         "from mjx_peg.engines import run_trials, _pool\n"
-        "from mjx_peg.task import TaskConfig, sample_trials\n"
-        "from mjx_peg.trial import TrialConfig\n"
+        "from mjx_peg.world.task import TaskConfig, sample_trials\n"
+        "from mjx_peg.engines.trial import TrialConfig\n"
         "specs = sample_trials(TaskConfig(shapes=('square',)), 1, 40)\n"
         "def started(count):\n"
         "    print(*[w.proc.pid for w in _pool._POOL.workers], flush=True)\n"

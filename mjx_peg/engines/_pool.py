@@ -41,9 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg.params import ControllerParams
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import TrialConfig, TrialResult
+from mjx_peg.engines.trial import TrialConfig, TrialResult
+from mjx_peg.skill.params import ControllerParams
+from mjx_peg.world.task import TrialSpec
 
 # One finished trial, as workers send it back.
 RESULT_DTYPE = np.dtype(

@@ -26,21 +26,29 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from mjx_peg import scene
-from mjx_peg.controller import Skill, make_skill, skill_torque, start_state, wrench_in_goal_frame
 from mjx_peg.engines import _pool
 from mjx_peg.engines._pool import RESULT_DTYPE, to_result
-from mjx_peg.params import ControllerParams
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import (
+from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
+    control_config,
     destination,
     fitted_basis,
     is_success,
     trial_goals,
     trial_reward,
 )
+from mjx_peg.skill.control_step import (
+    Measurement,
+    Skill,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
+from mjx_peg.skill.params import ControllerParams
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TrialSpec
 
 # Rows of one batch. The batched controller costs ~200 us per call whatever the batch (its ~100
 # NumPy calls) plus ~2 us per trial, so bigger batches amortize it; 128 holds the share of a
@@ -130,7 +138,7 @@ def _keep_envs(keys: set) -> None:
 
 
 def _scene_key(specs: TrialSpec, index: int) -> tuple[str, float]:
-    return scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
+    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
 
 
 class _Queue:
@@ -207,7 +215,7 @@ class _Batch:
         self.force = self.sensor[:, lay.force_adr : lay.force_adr + 3]
         self.torque = self.sensor[:, lay.torque_adr : lay.torque_adr + 3]
         assert np.shares_memory(self.tcp_rot, self.site_mat), "rotations must be views"
-        self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
+        self.control = control_config(config)
         self._views: tuple = (0, ())
 
     # -- rows ----------------------------------------------------------------------------------
@@ -378,24 +386,19 @@ class _Batch:
             np.maximum(v.peak_force, np.linalg.norm(wrench[:, :3], axis=-1), out=v.peak_force)
             if observer is not None:
                 observer(self, np.arange(n), wrench)
-            torques = skill_torque(
-                Skill(v.goal_pos, v.goal_rot, v.y0, v.k_y, v.d_y, v.compliance),
-                self.basis,
-                v.step * cfg.timestep,
-                v.tcp_pos,
-                v.tcp_rot,
-                v.jac,
-                (v.jac_dot @ v.qvel[..., None])[..., 0],
-                v.qvel,
-                v.mass,
-                v.bias,
-                wrench,
-                self.torque_limits,
-                cfg.dmp.tau,
-                cfg.dmp.alpha_s,
-                cfg.dmp.k_ref,
-                cfg.pinv_damping,
+            meas = Measurement(
+                t=v.step * cfg.timestep,
+                tcp_pos=v.tcp_pos,
+                tcp_rot=v.tcp_rot,
+                jac=v.jac,
+                jdot_qdot=(v.jac_dot @ v.qvel[..., None])[..., 0],
+                qvel=v.qvel,
+                mass=v.mass,
+                bias=v.bias,
+                wrench=wrench,
             )
+            skill = Skill(v.goal_pos, v.goal_rot, v.y0, v.k_y, v.d_y, v.compliance)
+            torques = skill_torque(self.control, skill, self.basis, meas)
             torques = np.where(np.isfinite(torques), torques, 0.0)
             for i in range(n):
                 m, d, ctrl = step_args[i]
