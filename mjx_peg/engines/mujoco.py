@@ -4,7 +4,7 @@ A batch (`_Batch`) steps up to `slots` trials together in one thread. Every cont
 runs `mj_step1` on each live trial (fresh kinematics, mass matrix, bias forces; the force sensor
 still holds the previous step's reading, as on a real robot), copies what the controller needs
 into preallocated batch arrays, computes all the torques in one batched NumPy call of
-`controller.skill_torque`, then runs `mj_step2`. Live trials occupy rows [0, n) of the batch, so
+`control_step.skill_torque`, then runs `mj_step2`. Live trials occupy rows [0, n) of the batch, so
 the controller sees only them; a row whose trial ends takes the next trial at once, so cost
 follows the simulated time actually used.
 
@@ -35,7 +35,6 @@ from mjx_peg.engines.trial import (
     destination,
     fitted_basis,
     is_success,
-    trial_goals,
     trial_reward,
 )
 from mjx_peg.skill.control_step import (
@@ -48,7 +47,7 @@ from mjx_peg.skill.control_step import (
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
-from mjx_peg.world.task import TrialSpec
+from mjx_peg.world.task import TrialSpec, goal_pose
 
 # Rows of one batch. The batched controller costs ~200 us per call whatever the batch (its ~100
 # NumPy calls) plus ~2 us per trial, so bigger batches amortize it; 128 holds the share of a
@@ -267,8 +266,8 @@ class _Batch:
         sd = env.sensordata
         self.tare[row, :3] = sd[lay.force_adr : lay.force_adr + 3]
         self.tare[row, 3:] = sd[lay.torque_adr : lay.torque_adr + 3]
-        goal_pos, goal_rot = trial_goals(
-            s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1], cfg
+        goal_pos, goal_rot = goal_pose(
+            s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1]
         )
         tcp_pos = env.site_xpos[lay.tcp].copy()
         tcp_rot = env.site_xmat[lay.tcp].reshape(3, 3).copy()
