@@ -106,7 +106,7 @@ class SkillRuntime:
         self.hole = hole
         self.basis = fitted_basis(cfg.dmp)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
-        self.control = control_config(config)
+        self.control = control_config(cfg)
         self.skill = None
         self.tare = np.zeros((1, 6))
         self.t0 = self.last_t = 0.0
