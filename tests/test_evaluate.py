@@ -352,9 +352,9 @@ def test_learned_policy_directory(tmp_path):
         ({"--policy": "EMPTY_DIR"}, "holds no policy.npz"),
         ({"--linear-mm": ""}, "--linear-mm is empty"),
         ({"--angular-deg": "5:1:1"}, "--angular-deg is empty"),
-        ({"--trials": "-3"}, "--trials must be a positive integer"),
+        ({"--trials": "-3"}, "--trials must be an integer in 1..100,000, got -3"),
         ({"--shape": "hexagon"}, "unknown shape 'hexagon'"),
-        ({"--linear-mm": "80"}, "linear_mm must lie in [0, 50]"),
+        ({"--linear-mm": "80"}, "--linear-mm ranges must lie in [0, 50] mm, got 80"),
         ({"--compare": "NO_DIR"}, "is not a directory"),
     ],
 )

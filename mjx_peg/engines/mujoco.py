@@ -46,8 +46,12 @@ from mjx_peg.skill.control_step import (
     wrench_in_goal_frame,
 )
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.world import constants, scene
+from mjx_peg.world import constants, mujoco_log, scene
 from mjx_peg.world.task import TrialSpec, goal_pose
+
+# MuJoCo's warnings go where the CLI sent them (its output directory or nowhere), never to
+# MUJOCO_LOG.TXT in the working directory: world/mujoco_log.py; here for the worker processes.
+mujoco_log.install()
 
 # Rows of one batch. The batched controller costs ~200 us per call whatever the batch (its ~100
 # NumPy calls) plus ~2 us per trial, so bigger batches amortize it; 128 holds the share of a

@@ -15,11 +15,11 @@ from __future__ import annotations
 import csv
 import json
 import os
-import shutil
 from pathlib import Path
 
 import orbax.checkpoint as ocp
 
+from mjx_peg import cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import MANIFEST_FILE, POLICY_FILE
 
@@ -69,36 +69,59 @@ class RunDir:
                 f"{self.path} is not a training run ({self.config_path.name}: {e})"
             ) from None
 
-    def prepare(self, config: TrainConfig, force: bool) -> bool:
-        """Create or reuse the directory; True when there is a run to resume."""
-        if force and self.path.exists():
-            shutil.rmtree(self.path)
+    def is_run(self) -> bool:
+        """Recognisably a training run: its config.json reads as a TrainConfig."""
+        try:
+            self.read_config()
+            return True
+        except ValueError:
+            return False
+
+    def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
+        """What `prepare` will do, decided without touching anything: "new" (an empty or absent
+        directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:
+        it is moved aside); ValueError (one line) for everything else."""
+        if init_from is not None:
+            cli.check_apart(self.path, {"--init-from": init_from})
         if self.path.exists() and not self.path.is_dir():
             raise ValueError(f"--out {self.path} exists and is not a directory")
-        if self.path.is_dir() and any(self.path.iterdir()):
-            if not self.config_path.is_file():
-                raise ValueError(
-                    f"--out {self.path} is not empty and holds no training run; "
-                    "choose another directory"
-                )
-            if self.is_finished():
-                raise ValueError(
-                    f"--out {self.path} holds a finished run; pass --force to overwrite it"
-                )
-            previous = self.read_config()
-            if previous != config:
-                changed = sorted(
-                    k for k, v in config.to_json().items() if previous.to_json().get(k) != v
-                )
-                raise ValueError(
-                    f"--out {self.path} holds an unfinished run with a different config "
-                    f"({', '.join(changed)} differ); rerun it with the same options, or pass "
-                    "--force to start over"
-                )
-            return True
-        self.path.mkdir(parents=True, exist_ok=True)
-        self.config_path.write_text(config.dumps())
-        return False
+        if not self.path.is_dir() or not any(self.path.iterdir()):
+            return "new"
+        if not self.config_path.is_file():
+            raise ValueError(
+                f"--out {self.path} is not empty and holds no training run; choose another "
+                "directory (--force replaces only a training run)"
+            )
+        previous = self.read_config()  # a config.json that is not a run's: ValueError
+        if force:
+            return "replace"
+        if self.is_finished():
+            raise ValueError(
+                f"--out {self.path} holds a finished run; pass --force to move it aside and "
+                "start over"
+            )
+        if previous != config:
+            changed = sorted(
+                k for k, v in config.to_json().items() if previous.to_json().get(k) != v
+            )
+            raise ValueError(
+                f"--out {self.path} holds an unfinished run with a different config "
+                f"({', '.join(changed)} differ); rerun it with the same options, or pass "
+                "--force to move it aside and start over"
+            )
+        return "resume"
+
+    def prepare(self, config: TrainConfig, plan: str) -> Path | None:
+        """Carry out `plan` (from `plan()`): move a replaced run aside, create the directory,
+        (re)write config.json atomically (which proves the directory writable); returns where
+        a replaced run went."""
+        moved = None
+        if plan == "replace":
+            moved = cli.move_aside(self.path)
+        if plan != "resume":
+            cli.prepare_dir(self.path)
+        cli.write_atomic(self.config_path, config.dumps())
+        return moved
 
     def checkpoints(self) -> ocp.CheckpointManager:
         return ocp.CheckpointManager(
@@ -120,12 +143,18 @@ class RunDir:
             self.start_tables()
             return
         for path, column in ((self.metrics_path, "trials"), (self.trials_path, "trial")):
-            with open(path, newline="") as f:
-                rows = list(csv.reader(f))
-            header, body = rows[0], rows[1:]
-            i = header.index(column)
-            limit = trials if column == "trials" else trials - 1
-            kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
+            try:
+                with open(path, newline="") as f:
+                    rows = list(csv.reader(f))
+                header, body = rows[0], rows[1:]
+                i = header.index(column)
+                limit = trials if column == "trials" else trials - 1
+                kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
+            except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
+                raise ValueError(
+                    f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
+                    "aside (--force) to start over"
+                ) from None
             tmp = path.with_suffix(".tmp")
             with open(tmp, "w", newline="") as f:
                 csv.writer(f).writerows([header] + kept)
