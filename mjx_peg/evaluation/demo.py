@@ -274,14 +274,16 @@ def main(argv=None) -> int:
     if args.out.is_dir() and not args.force:
         cli.refuse_or_move(outputs, False, PROG)
     if args.frames:
-        from mjx_peg.world import gl, render
+        from mjx_peg.world import render
 
         render.check_backend()  # or one line: before the trial runs
+    cli.prepare_dir(args.out)
+    cli.refuse_or_move(outputs, args.force, PROG)
+    if args.frames:
+        from mjx_peg.world import gl
+
         if gl.fallback_note():
             cli.note(PROG, f"warning: {gl.fallback_note()}")
-    if args.out.is_dir():
-        cli.refuse_or_move(outputs, args.force, PROG)
-    cli.prepare_dir(args.out)
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(args.out)

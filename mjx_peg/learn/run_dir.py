@@ -69,14 +69,6 @@ class RunDir:
                 f"{self.path} is not a training run ({self.config_path.name}: {e})"
             ) from None
 
-    def is_run(self) -> bool:
-        """Recognisably a training run: its config.json reads as a TrainConfig."""
-        try:
-            self.read_config()
-            return True
-        except ValueError:
-            return False
-
     def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
         """What `prepare` will do, decided without touching anything: "new" (an empty or absent
         directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:

@@ -563,12 +563,12 @@ def main(argv=None) -> int:
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
         names = ", ".join(model.camera(i).name for i in range(model.ncam))
         raise ValueError(f"unknown camera {args.camera!r}: valid cameras are {names}")
+    render.check_backend()
+    cli.prepare_dir(args.out)
+    cli.refuse_or_move([xml_path, png_path], args.force, PROG)
     if gl.fallback_note():
         cli.note(PROG, f"warning: {gl.fallback_note()}")
     rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-    if args.out.is_dir():
-        cli.refuse_or_move([xml_path, png_path], args.force, PROG)
-    cli.prepare_dir(args.out)
     cli.write_atomic(xml_path, xml)
     cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
     print(xml_path)
