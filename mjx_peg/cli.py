@@ -211,8 +211,11 @@ def prepare_dir(path) -> Path:
     if path.exists() and not path.is_dir():
         raise ValueError(f"{path} exists and is not a directory")
     path.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryFile(dir=path):
-        pass
+    try:
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as e:
+        raise ValueError(f"cannot write in {path} ({e.strerror or e})") from None
     return path
 
 
