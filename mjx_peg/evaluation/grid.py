@@ -522,7 +522,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--force",
         action="store_true",
         help="start over in --out although it holds an evaluation (another config, or finished): "
-        "the earlier one is moved aside to OUT.replaced-DATE-TIME; only an evaluation is",
+        "the earlier one is moved aside to OUT.replaced-DATE-TIME (nothing but an evaluation is "
+        "ever replaced)",
     )
     p.add_argument(
         "--grid",

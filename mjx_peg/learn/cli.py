@@ -44,7 +44,8 @@ def parser() -> argparse.ArgumentParser:
         "--force",
         action="store_true",
         help="start over in --out although it holds a run (finished, or with another config): "
-        "the earlier run is moved aside to OUT.replaced-DATE-TIME; only a training run is",
+        "the earlier run is moved aside to OUT.replaced-DATE-TIME (nothing but a training run is "
+        "ever replaced)",
     )
     p.add_argument(
         "--checkpoint-every", type=cli.number(0, 86400, "s"), default=60.0, help="default 60"
