@@ -226,7 +226,8 @@ def test_eval_corrupt_range_file_is_one_line_naming_it(tmp_path, capsys, monkeyp
 
 def test_train_corrupt_checkpoint_is_one_line_naming_it(tmp_path):
     """A checkpoint Orbax cannot read: one ValueError line naming it, and no 'Event loop is
-    closed' reports from the reads still in flight (they went to sys.unraisablehook)."""
+    closed' reports from the TensorStore reads still in flight when Orbax closed its loop (they
+    reach sys.unraisablehook; whether any is in flight is a race, about one run in two here)."""
     code = (
         "import sys, time\n"
         "from mjx_peg.learn import trainer\n"
@@ -244,17 +245,18 @@ def test_train_corrupt_checkpoint_is_one_line_naming_it(tmp_path):
         "    print(e, file=sys.stderr)\n"
         "time.sleep(0.5)\n"
     )
-    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_")}  # no XLA cache logs
     done = subprocess.run(
         [sys.executable, "-c", code, str(tmp_path / "run")],
         capture_output=True,
         text=True,
-        env=env,
+        env={**env, "JAX_PLATFORMS": "cpu"},
         timeout=300,
     )
-    err = [ln for ln in done.stderr.splitlines() if "warp" not in ln.lower()]
-    assert done.returncode == 0 and len(err) == 1, done.stderr[-3000:]
-    assert "checkpoints/0 is corrupt or truncated" in err[0]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Traceback" not in done.stderr and "Event loop is closed" not in done.stderr
+    (line,) = [ln for ln in done.stderr.splitlines() if "corrupt or truncated" in ln]
+    assert "checkpoints/0 is corrupt or truncated" in line
 
 
 # -- one error path, ranges, units ------------------------------------------------------------
