@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -46,9 +47,29 @@ class TrialConfig:
     # chattering or diverging controllers exceed it long before the physics returns NaN.
     max_joint_speed: float = 2.0 * math.pi
     reward: RewardConfig = dataclasses.field(default_factory=RewardConfig)
+    # A failure whose outcome can no longer change ends at once, flagged `settled`: the DMP's
+    # forcing is over (t >= settle_after_s), every joint is slower than settle_joint_speed, and
+    # the tip and the sensed wrench have stayed within settle_tip_m, settle_force_n and
+    # settle_moment_nm of their values at the start of a window of settle_window_s (see
+    # `settle_update`). end_settled=False runs every failure to the time limit, the paper's
+    # protocol (`--full-time-limit`).
+    end_settled: bool = True
+    settle_after_s: float = 2.0  # the phase is then exp(-alpha_s 2 / tau) = 3e-4 at the defaults
+    settle_window_s: float = 1.0
+    settle_joint_speed: float = 1e-3  # rad/s
+    settle_tip_m: float = 1e-4
+    settle_force_n: float = 0.5
+    settle_moment_nm: float = 0.05
 
     def __post_init__(self):
-        for name in ("time_limit_s", "timestep", "success_height", "max_joint_speed"):
+        positive = ("time_limit_s", "timestep", "success_height", "max_joint_speed",
+                    "settle_window_s", "settle_joint_speed", "settle_tip_m", "settle_force_n",
+                    "settle_moment_nm")  # fmt: skip
+        if not (math.isfinite(self.settle_after_s) and self.settle_after_s >= 0):
+            raise ValueError(
+                f"TrialConfig.settle_after_s must be a number >= 0, got {self.settle_after_s!r}"
+            )
+        for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"TrialConfig.{name} must be a positive number, got {value!r}")
@@ -60,6 +81,11 @@ class TrialConfig:
     @property
     def max_steps(self) -> int:
         return int(round(self.time_limit_s / self.timestep))
+
+    @property
+    def settle_steps(self) -> int:
+        """Control periods a trial must stay still to count as settled."""
+        return max(1, int(round(self.settle_window_s / self.timestep)))
 
     def replace(self, **changes) -> TrialConfig:
         return dataclasses.replace(self, **changes)
@@ -76,6 +102,8 @@ class TrialResult:
     reward: np.ndarray  # (B,) paper scale (38000 on success)
     unstable: np.ndarray  # (B,) bool: physics blew up or joints beyond max_joint_speed (failed)
     steps: np.ndarray  # (B,) physics steps simulated
+    # (B,) bool: a failure ended early because it had settled (TrialConfig.end_settled)
+    settled: np.ndarray
 
     def __len__(self) -> int:
         return int(self.success.shape[0])
@@ -104,7 +132,7 @@ class TrialResult:
         return (
             f"{int(ok.sum())}/{n} succeeded ({100.0 * ok.mean():.1f} %), "
             f"median time {median:.2f} s, {int(self.unstable.sum())} unstable, "
-            f"mean reward {float(self.reward.mean()):.0f}"
+            f"{int(self.settled.sum())} settled, mean reward {float(self.reward.mean()):.0f}"
         )
 
 
@@ -146,6 +174,50 @@ def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConf
     d_end = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
     progress = xp.clip(1.0 - d_end / xp.maximum(start_distance, 1e-6), 0.0, 1.0)
     return xp.where(success, reward.success, reward.shaped * progress)
+
+
+class SettleState(NamedTuple):
+    """Per trial, how long it has been still and the values its stillness is measured against."""
+
+    still: object  # (...,) int: control periods the trial has been still, in a row
+    tip: object  # (..., 3) true peg tip at the start of the window (m)
+    wrench: object  # (..., 6) sensed wrench at the start of the window (N, N m)
+
+
+def settle_start(tip_pos, wrench) -> SettleState:
+    """The state of a trial at its start (not still)."""
+    xp = tip_pos.__array_namespace__()
+    return SettleState(xp.zeros(tip_pos.shape[:-1], dtype=xp.int32), tip_pos, wrench)
+
+
+def settle_update(state: SettleState, t, qvel, tip_pos, wrench, config: TrialConfig):
+    """The state after one control period at time t (s), with joint speeds qvel (..., n), tip
+    (..., 3) and sensed wrench (..., 6); a window restarts from the current values whenever the
+    trial moves. A trial has settled when `is_settled`.
+
+    Written over the array-API namespace of its inputs, like the controller: the engines and the
+    robot runtime share it.
+    """
+    xp = tip_pos.__array_namespace__()
+    lim = config.settle_force_n, config.settle_moment_nm
+    change = xp.abs(wrench - state.wrench)
+    still = (
+        (t >= config.settle_after_s)
+        & (xp.max(xp.abs(qvel), axis=-1) < config.settle_joint_speed)
+        & xp.all(xp.abs(tip_pos - state.tip) <= config.settle_tip_m, axis=-1)
+        & xp.all(change[..., :3] <= lim[0], axis=-1)
+        & xp.all(change[..., 3:] <= lim[1], axis=-1)
+    )
+    return SettleState(
+        xp.where(still, state.still + 1, 0),
+        xp.where(still[..., None], state.tip, tip_pos),
+        xp.where(still[..., None], state.wrench, wrench),
+    )
+
+
+def is_settled(state: SettleState, config: TrialConfig):
+    """(...,) bool: the trial has been still for settle_window_s and may end (if end_settled)."""
+    return (state.still >= config.settle_steps) & config.end_settled
 
 
 def as_controller_params(params, batch: int) -> ControllerParams:
