@@ -202,8 +202,9 @@ class _Sims:
         """Put trial `index` in simulation `sim`; the scratch MjData at the start (its sensors are
         the tare). The caller runs `forward` on the simulations it loaded."""
         m, d = self.trial_model, self.trial_data
-        scene.start_trial(m, d, self.ids, specs.board_pos[index], specs.board_yaw[index],
-                          specs.grasp_error[index], specs.friction[index], specs.q0[index])  # fmt: skip
+        s = specs
+        scene.start_trial(m, d, self.ids, s.board_pos[index], s.board_yaw[index],
+                          s.grasp_error[index], s.friction[index], s.q0[index])  # fmt: skip
         for name, values in self.fields.items():
             values[sim] = getattr(m, name)
         mujoco.mj_getState(m, d, self.state[sim], STATE)
@@ -372,7 +373,7 @@ class _Lane:
                 a[: len(order)] = a[order]
         self.n = n = len(order)
         self.blocks = []
-        for k, sims in enumerate(self.scenes):
+        for k in range(len(self.scenes)):
             a, b = np.searchsorted(self.scene[:n], [k, k + 1])
             self.blocks.append((int(a), int(b), self.sim[a:b].astype(np.int32)))
 
@@ -485,15 +486,16 @@ class _Lane:
         t = step * cfg.timestep
         if cfg.end_settled:
             state = SettleState(self.still[:n], self.still_tip[:n], self.still_wrench[:n])
-            still, still_tip, still_wrench = settle_update(state, t, m.qvel, tip_pos, wrench, cfg)
-            self.still[:n], self.still_tip[:n], self.still_wrench[:n] = still, still_tip, still_wrench
+            state = settle_update(state, t, m.qvel, tip_pos, wrench, cfg)
+            self.still[:n], self.still_tip[:n], self.still_wrench[:n] = state
         if observer is not None:
             self.tip_pos, self.tcp_pos = tip_pos, tcp_pos
             observer(self, np.arange(n), wrench)
         qvel = np.ascontiguousarray(m.qvel)
+        skill = Skill(*(a[:n] for a in (self.goal_pos, self.goal_rot, self.y0, self.k_y,
+                                         self.d_y, self.compliance)))  # fmt: skip
         torques = skill_torque(
-            Skill(self.goal_pos[:n], goal_rot, self.y0[:n], self.k_y[:n], self.d_y[:n],
-                  self.compliance[:n]),  # fmt: skip
+            skill,
             self.basis,
             t,
             np.ascontiguousarray(tcp_pos),
