@@ -47,19 +47,21 @@ class TrialConfig:
     # chattering or diverging controllers exceed it long before the physics returns NaN.
     max_joint_speed: float = 2.0 * math.pi
     reward: RewardConfig = dataclasses.field(default_factory=RewardConfig)
-    # A failure whose outcome can no longer change ends at once, flagged `settled`: the DMP's
-    # forcing is over (t >= settle_after_s), every joint is slower than settle_joint_speed, and
-    # the tip and the sensed wrench have stayed within settle_tip_m, settle_force_n and
-    # settle_moment_nm of their values at the start of a window of settle_window_s (see
-    # `settle_update`). end_settled=False runs every failure to the time limit, the paper's
-    # protocol (`--full-time-limit`).
+    # A failure whose outcome can no longer change ends at once, flagged `settled` (see
+    # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
+    # greatest value) of the tip position, the sensed wrench and the fastest joint speed over a
+    # window of settle_window_s has matched the previous window's within settle_tip_m,
+    # settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times in a row:
+    # the arm is at rest, or repeats the same oscillation (a peg chattering on the board top).
+    # end_settled=False runs every failure to the time limit, the paper's protocol.
     end_settled: bool = True
     settle_after_s: float = 2.0  # the phase is then exp(-alpha_s 2 / tau) = 3e-4 at the defaults
     settle_window_s: float = 1.0
-    settle_joint_speed: float = 1e-3  # rad/s
-    settle_tip_m: float = 1e-4
+    settle_windows: int = 1
+    settle_tip_m: float = 5e-5
     settle_force_n: float = 0.5
     settle_moment_nm: float = 0.05
+    settle_joint_speed: float = 0.05  # rad/s
 
     def __post_init__(self):
         positive = ("time_limit_s", "timestep", "success_height", "max_joint_speed",
@@ -68,6 +70,12 @@ class TrialConfig:
         if not (math.isfinite(self.settle_after_s) and self.settle_after_s >= 0):
             raise ValueError(
                 f"TrialConfig.settle_after_s must be a number >= 0, got {self.settle_after_s!r}"
+            )
+        if isinstance(self.settle_windows, bool) or not (
+            isinstance(self.settle_windows, int) and self.settle_windows >= 1
+        ):
+            raise ValueError(
+                f"TrialConfig.settle_windows must be an integer >= 1, got {self.settle_windows!r}"
             )
         for name in positive:
             value = getattr(self, name)
@@ -84,7 +92,7 @@ class TrialConfig:
 
     @property
     def settle_steps(self) -> int:
-        """Control periods a trial must stay still to count as settled."""
+        """Control periods in a settle window."""
         return max(1, int(round(self.settle_window_s / self.timestep)))
 
     def replace(self, **changes) -> TrialConfig:
@@ -177,47 +185,59 @@ def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConf
 
 
 class SettleState(NamedTuple):
-    """Per trial, how long it has been still and the values its stillness is measured against."""
+    """Per trial, the envelopes `settle_update` compares (a pytree under JAX)."""
 
-    still: object  # (...,) int: control periods the trial has been still, in a row
-    tip: object  # (..., 3) true peg tip at the start of the window (m)
-    wrench: object  # (..., 6) sensed wrench at the start of the window (N, N m)
-
-
-def settle_start(tip_pos, wrench) -> SettleState:
-    """The state of a trial at its start (not still)."""
-    xp = tip_pos.__array_namespace__()
-    return SettleState(xp.zeros(tip_pos.shape[:-1], dtype=xp.int32), tip_pos, wrench)
+    low: object  # (..., 10) least [tip (3), wrench (6), fastest joint speed] in this window
+    high: object  # (..., 10) greatest
+    last_low: object  # (..., 10) of the previous window
+    last_high: object  # (..., 10)
+    matched: object  # (...,) int: windows in a row whose envelope matched the previous one
 
 
-def settle_update(state: SettleState, t, qvel, tip_pos, wrench, config: TrialConfig):
-    """The state after one control period at time t (s), with joint speeds qvel (..., n), tip
-    (..., 3) and sensed wrench (..., 6); a window restarts from the current values whenever the
-    trial moves. A trial has settled when `is_settled`.
+def settle_start(batch_shape=(), xp=np) -> SettleState:
+    """The state of trials at their start."""
+    inf = xp.full((*batch_shape, 10), math.inf)
+    return SettleState(inf, -inf, inf, -inf, xp.zeros(batch_shape, dtype=xp.int32))
 
-    Written over the array-API namespace of its inputs, like the controller: the engines and the
-    robot runtime share it.
+
+def settle_update(state: SettleState, step, qvel, tip_pos, wrench, config: TrialConfig):
+    """The state after the control period `step` (the trial's, from 0) with joint speeds qvel
+    (..., n), true tip (..., 3) and sensed wrench (..., 6); see TrialConfig.end_settled.
+
+    Windows are steps [k W, (k + 1) W) of the trial, W = config.settle_steps. When a window
+    closes, its envelope is compared with the previous window's, if that one started at or after
+    settle_after_s. Written over the array-API namespace of its inputs, like the controller: the
+    engines and the robot runtime share it.
     """
     xp = tip_pos.__array_namespace__()
-    lim = config.settle_force_n, config.settle_moment_nm
-    change = xp.abs(wrench - state.wrench)
-    still = (
-        (t >= config.settle_after_s)
-        & (xp.max(xp.abs(qvel), axis=-1) < config.settle_joint_speed)
-        & xp.all(xp.abs(tip_pos - state.tip) <= config.settle_tip_m, axis=-1)
-        & xp.all(change[..., :3] <= lim[0], axis=-1)
-        & xp.all(change[..., 3:] <= lim[1], axis=-1)
+    speed = xp.max(xp.abs(qvel), axis=-1, keepdims=True)
+    x = xp.concat([tip_pos, wrench, speed], axis=-1)
+    low, high = xp.minimum(state.low, x), xp.maximum(state.high, x)
+    w = config.settle_steps
+    tol = xp.asarray(
+        [config.settle_tip_m] * 3 + [config.settle_force_n] * 3 + [config.settle_moment_nm] * 3
+        + [config.settle_joint_speed], dtype=tip_pos.dtype,
+    )  # fmt: skip
+    same = xp.all(
+        (xp.abs(low - state.last_low) <= tol) & (xp.abs(high - state.last_high) <= tol), axis=-1
     )
+    first = step + 1 - 2 * w  # the previous window's first step
+    counted = (first >= 0) & (first * config.timestep >= config.settle_after_s - 1e-9)
+    closes = (step + 1) % w == 0
+    matched = xp.where(closes, xp.where(same & counted, state.matched + 1, 0), state.matched)
+    c = closes[..., None]
     return SettleState(
-        xp.where(still, state.still + 1, 0),
-        xp.where(still[..., None], state.tip, tip_pos),
-        xp.where(still[..., None], state.wrench, wrench),
+        xp.where(c, math.inf, low),
+        xp.where(c, -math.inf, high),
+        xp.where(c, low, state.last_low),
+        xp.where(c, high, state.last_high),
+        matched,
     )
 
 
 def is_settled(state: SettleState, config: TrialConfig):
-    """(...,) bool: the trial has been still for settle_window_s and may end (if end_settled)."""
-    return (state.still >= config.settle_steps) & config.end_settled
+    """(...,) bool: the trial has settled and ends (if config.end_settled)."""
+    return (state.matched >= config.settle_windows) & config.end_settled
 
 
 def as_controller_params(params, batch: int) -> ControllerParams:

@@ -95,11 +95,14 @@ def to_result(records: np.ndarray) -> TrialResult:
 # -- kinematics from MuJoCo's bound fields ------------------------------------------------------
 
 
+_NEXT, _LAST = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
 def _cross(a, b):
-    """(..., 3) a x b, each component computed as MuJoCo's mju_cross (so that the bits match)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    """(3, ...) a x b of vectors along the first axis (component-major, so that NumPy runs long
+    loops), each component computed as MuJoCo's mju_cross so that the bits match:
+    (a1 b2 - a2 b1, a2 b0 - a0 b2, a0 b1 - a1 b0)."""
+    return a[_NEXT] * b[_LAST] - a[_LAST] * b[_NEXT]
 
 
 def jacobians(cdof, cdof_dot, cvel, com, point):
@@ -111,17 +114,23 @@ def jacobians(cdof, cdof_dot, cvel, com, point):
     `com` (n, 3), the subtree centre of mass of the body's root; cvel: (n, 6) the body's velocity
     in the same form.
     """
-    offset = point - com
-    ang = cdof[..., :3]
-    at = offset[:, None, :]
-    jac = np.concatenate([cdof[..., 3:] + _cross(ang, at), ang], axis=-1)
-    point_vel = cvel[:, 3:] - _cross(offset, cvel[:, :3])  # mju_transformSpatial
-    ang_dot = cdof_dot[..., :3]
-    lin_dot = cdof_dot[..., 3:] + _cross(ang_dot, at) + _cross(ang, point_vel[:, None, :])
-    jac_dot = np.concatenate([lin_dot, ang_dot], axis=-1)
+    n, nv = cdof.shape[:2]
+    axes = np.ascontiguousarray(cdof.transpose(2, 0, 1))  # (6, n, nv)
+    axes_dot = np.ascontiguousarray(cdof_dot.transpose(2, 0, 1))
+    offset = np.ascontiguousarray((point - com).T)  # (3, n)
+    vel = np.ascontiguousarray(cvel.T)
+    point_vel = vel[3:] - _cross(offset, vel[:3])  # mju_transformSpatial
+    offset = np.repeat(offset[:, :, None], nv, axis=2)  # (3, n, nv)
+    point_vel = np.repeat(point_vel[:, :, None], nv, axis=2)
+    jac, jac_dot = np.empty((6, n, nv)), np.empty((6, n, nv))
+    np.add(axes[3:], _cross(axes[:3], offset), out=jac[:3])
+    jac[3:] = axes[:3]
+    np.add(axes_dot[3:], _cross(axes_dot[:3], offset), out=jac_dot[:3])
+    jac_dot[:3] += _cross(axes[:3], point_vel)
+    jac_dot[3:] = axes_dot[:3]
     return (
-        np.ascontiguousarray(jac.transpose(0, 2, 1)),
-        np.ascontiguousarray(jac_dot.transpose(0, 2, 1)),
+        np.ascontiguousarray(jac.transpose(1, 0, 2)),
+        np.ascontiguousarray(jac_dot.transpose(1, 0, 2)),
     )
 
 
@@ -324,7 +333,7 @@ class _Queue:
 # Arrays of a lane with one row per live trial, moved with their trial when rows are re-sorted.
 _ROW_ARRAYS = (
     "scene sim goal_pos goal_rot y0 k_y d_y compliance tare board_pos size start_distance "
-    "peak_force step spec_index still still_tip still_wrench"
+    "peak_force step spec_index settle_low settle_high settle_last_low settle_last_high matched"
 ).split()
 
 
@@ -347,8 +356,10 @@ class _Lane:
         self.board_pos, self.size = np.zeros((b, 2)), np.ones(b)
         self.start_distance, self.peak_force = np.ones(b), np.zeros(b)
         self.step, self.spec_index = np.zeros(b, dtype=np.int64), np.full(b, -1)
-        self.still = np.zeros(b, dtype=np.int64)
-        self.still_tip, self.still_wrench = np.zeros((b, 3)), np.zeros((b, 6))
+        self.settle_low, self.settle_high = np.zeros((b, 10)), np.zeros((b, 10))
+        self.settle_last_low, self.settle_last_high = np.zeros((b, 10)), np.zeros((b, 10))
+        self.matched = np.zeros(b, dtype=np.int64)
+        self._settle = [getattr(self, n) for n in _ROW_ARRAYS if n.startswith("settle_")]
         self._rows = [getattr(self, name) for name in _ROW_ARRAYS]
         self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
         self.n = 0
@@ -406,7 +417,9 @@ class _Lane:
         tip = d.site_xpos[sims.ids.tip_site]
         self.start_distance[row] = np.linalg.norm(tip - destination(s.board_pos[index]))
         self.peak_force[row] = 0.0
-        self.step[row] = self.still[row] = 0
+        self.step[row] = self.matched[row] = 0
+        for a, value in zip(self._settle, (np.inf, -np.inf, np.inf, -np.inf), strict=True):
+            a[row] = value
         self.spec_index[row] = index
         self.scene[row], self.sim[row] = k, sim
         return k, sim
@@ -442,7 +455,8 @@ class _Lane:
         ok = (np.abs(m.qvel).max(axis=-1) < cfg.max_joint_speed) & np.isfinite(tip).all(-1)
         # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
         unstable = ~ok | (np.abs(m.time - step * dt) > 0.5 * dt)
-        settled = ~success & ~unstable & is_settled(SettleState(self.still[:n], None, None), cfg)
+        settled = is_settled(SettleState(*(None,) * 4, self.matched[:n]), cfg)
+        settled &= ~success & ~unstable
         return success, unstable, settled, success | unstable | settled | (step >= cfg.max_steps)
 
     def _end_trials(self, source, report: bool) -> _Measured | None:
@@ -485,11 +499,12 @@ class _Lane:
         np.maximum(peak, np.linalg.norm(wrench[:, :3], axis=-1), out=peak)
         t = step * cfg.timestep
         if cfg.end_settled:
-            state = SettleState(self.still[:n], self.still_tip[:n], self.still_wrench[:n])
-            state = settle_update(state, t, m.qvel, tip_pos, wrench, cfg)
-            self.still[:n], self.still_tip[:n], self.still_wrench[:n] = state
+            rows = (*(a[:n] for a in self._settle), self.matched[:n])
+            state = settle_update(SettleState(*rows), step, m.qvel, tip_pos, wrench, cfg)
+            for a, value in zip(rows, state, strict=True):
+                a[...] = value
         if observer is not None:
-            self.tip_pos, self.tcp_pos = tip_pos, tcp_pos
+            self.tip_pos, self.tcp_pos, self.measured = tip_pos, tcp_pos, m
             observer(self, np.arange(n), wrench)
         qvel = np.ascontiguousarray(m.qvel)
         skill = Skill(*(a[:n] for a in (self.goal_pos, self.goal_rot, self.y0, self.k_y,
