@@ -200,26 +200,28 @@ def settle_start(batch_shape=(), xp=np) -> SettleState:
     return SettleState(inf, -inf, inf, -inf, xp.zeros(batch_shape, dtype=xp.int32))
 
 
-def settle_update(state: SettleState, step, qvel, tip_pos, wrench, config: TrialConfig):
-    """The state after the control period `step` (the trial's, from 0) with joint speeds qvel
-    (..., n), true tip (..., 3) and sensed wrench (..., 6); see TrialConfig.end_settled.
-
-    Windows are steps [k W, (k + 1) W) of the trial, W = config.settle_steps. When a window
-    closes, its envelope is compared with the previous window's, if that one started at or after
-    settle_after_s. Written over the array-API namespace of its inputs, like the controller: the
-    engines and the robot runtime share it.
-    """
+def settle_observe(state: SettleState, qvel, tip_pos, wrench) -> SettleState:
+    """The state with this control period's joint speeds qvel (..., n), true tip (..., 3) and
+    sensed wrench (..., 6) in the current window's envelope."""
     xp = tip_pos.__array_namespace__()
     speed = xp.max(xp.abs(qvel), axis=-1, keepdims=True)
     x = xp.concat([tip_pos, wrench, speed], axis=-1)
-    low, high = xp.minimum(state.low, x), xp.maximum(state.high, x)
+    return state._replace(low=xp.minimum(state.low, x), high=xp.maximum(state.high, x))
+
+
+def settle_close(state: SettleState, step, config: TrialConfig) -> SettleState:
+    """The state after control period `step` (the trial's, from 0) has been observed: when it
+    closes a window, the window's envelope is compared with the previous window's (if that one
+    started at or after settle_after_s) and becomes the previous window."""
+    xp = state.low.__array_namespace__()
     w = config.settle_steps
     tol = xp.asarray(
         [config.settle_tip_m] * 3 + [config.settle_force_n] * 3 + [config.settle_moment_nm] * 3
-        + [config.settle_joint_speed], dtype=tip_pos.dtype,
+        + [config.settle_joint_speed], dtype=state.low.dtype,
     )  # fmt: skip
     same = xp.all(
-        (xp.abs(low - state.last_low) <= tol) & (xp.abs(high - state.last_high) <= tol), axis=-1
+        (xp.abs(state.low - state.last_low) <= tol) & (xp.abs(state.high - state.last_high) <= tol),
+        axis=-1,
     )
     first = step + 1 - 2 * w  # the previous window's first step
     counted = (first >= 0) & (first * config.timestep >= config.settle_after_s - 1e-9)
@@ -227,12 +229,21 @@ def settle_update(state: SettleState, step, qvel, tip_pos, wrench, config: Trial
     matched = xp.where(closes, xp.where(same & counted, state.matched + 1, 0), state.matched)
     c = closes[..., None]
     return SettleState(
-        xp.where(c, math.inf, low),
-        xp.where(c, -math.inf, high),
-        xp.where(c, low, state.last_low),
-        xp.where(c, high, state.last_high),
+        xp.where(c, math.inf, state.low),
+        xp.where(c, -math.inf, state.high),
+        xp.where(c, state.low, state.last_low),
+        xp.where(c, state.high, state.last_high),
         matched,
     )
+
+
+def settle_update(state: SettleState, step, qvel, tip_pos, wrench, config: TrialConfig):
+    """`settle_close` after `settle_observe`: one control period of the settle test (see
+    TrialConfig.end_settled). Windows are steps [k W, (k + 1) W) of the trial,
+    W = config.settle_steps. Written over the array-API namespace of its inputs, like the
+    controller: the engines and the robot runtime share it; it acts on each trial alone.
+    """
+    return settle_close(settle_observe(state, qvel, tip_pos, wrench), step, config)
 
 
 def is_settled(state: SettleState, config: TrialConfig):

@@ -49,7 +49,8 @@ from mjx_peg.trial import (
     fitted_basis,
     is_settled,
     is_success,
-    settle_update,
+    settle_close,
+    settle_observe,
     trial_goals,
     trial_reward,
 )
@@ -237,19 +238,26 @@ class _Sims:
             pass  # those simulations kept their state: their time check fails (unstable)
 
     def measure(self, ids: np.ndarray) -> _Measured:
-        col = ids[:, None]
+        """The bound fields of simulations `ids` (sorted): one gather per field (no copy of the
+        fields that need none when `ids` are all the simulations)."""
+        take = np.take
+        if len(ids) == self.nsim:
+            rows = lambda a: a  # noqa: E731
+        else:
+            rows = lambda a: take(a, ids, axis=0)  # noqa: E731
+        bias = rows(self.qfrc_bias) - rows(self.qfrc_passive)  # h: Coriolis, gravity, damping
         return _Measured(
-            self.time[ids],
-            self.qvel[ids],
-            self.site_xpos[col, self.sites],
-            self.site_xmat[col, self.sites[[0, 2]]].reshape(-1, 2, 3, 3),
-            self.sensordata[col, self.ft],
-            self.mass[col, self.mass_index].reshape(-1, 6, 6),
-            self.qfrc_bias[ids] - self.qfrc_passive[ids],  # h: Coriolis, gravity, joint damping
-            self.cdof[ids],
-            self.cdof_dot[ids],
-            self.cvel[ids, self.body],
-            self.subtree_com[ids, self.root],
+            rows(self.time),
+            rows(self.qvel),
+            take(rows(self.site_xpos), self.sites, axis=1),
+            take(rows(self.site_xmat), self.sites[[0, 2]], axis=1).reshape(-1, 2, 3, 3),
+            take(rows(self.sensordata), self.ft, axis=1),
+            take(rows(self.mass), self.mass_index, axis=1).reshape(-1, 6, 6),
+            bias,
+            rows(self.cdof),
+            rows(self.cdof_dot),
+            rows(self.cvel[:, self.body]),
+            rows(self.subtree_com[:, self.root]),
         )
 
     def current(self, sim: int) -> tuple:
@@ -498,11 +506,19 @@ class _Lane:
         peak = self.peak_force[:n]
         np.maximum(peak, np.linalg.norm(wrench[:, :3], axis=-1), out=peak)
         t = step * cfg.timestep
-        if cfg.end_settled:
-            rows = (*(a[:n] for a in self._settle), self.matched[:n])
-            state = settle_update(SettleState(*rows), step, m.qvel, tip_pos, wrench, cfg)
-            for a, value in zip(rows, state, strict=True):
-                a[...] = value
+        if cfg.end_settled:  # settle_update, the window test only on the rows it concerns
+            low, high = self.settle_low[:n], self.settle_high[:n]
+            state = settle_observe(
+                SettleState(low, high, None, None, None), m.qvel, tip_pos, wrench
+            )
+            low[...], high[...] = state.low, state.high
+            rows = np.flatnonzero((step + 1) % cfg.settle_steps == 0)
+            if rows.size:
+                state = SettleState(*(a[rows] for a in self._settle), self.matched[rows])
+                for a, value in zip(
+                    (*self._settle, self.matched), settle_close(state, step[rows], cfg), strict=True
+                ):
+                    a[rows] = value
         if observer is not None:
             self.tip_pos, self.tcp_pos, self.measured = tip_pos, tcp_pos, m
             observer(self, np.arange(n), wrench)
