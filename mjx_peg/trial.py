@@ -49,7 +49,7 @@ class TrialConfig:
     reward: RewardConfig = dataclasses.field(default_factory=RewardConfig)
     # A failure whose outcome can no longer change ends at once, flagged `settled` (see
     # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
-    # greatest value) of the tip position, the sensed wrench and the fastest joint speed over a
+    # greatest value) of the tcp position, the sensed wrench and the fastest joint speed over a
     # window of settle_window_s has matched the previous window's within settle_tip_m,
     # settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times in a row:
     # the arm is at rest, or repeats the same oscillation (a peg chattering on the board top).
@@ -187,7 +187,9 @@ def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConf
 class SettleState(NamedTuple):
     """Per trial, the envelopes `settle_update` compares (a pytree under JAX)."""
 
-    low: object  # (..., 10) least [tip (3), wrench (6), fastest joint speed] in this window
+    low: (
+        object  # (..., 10) least [tcp position (3), wrench (6), fastest joint speed] in this window
+    )
     high: object  # (..., 10) greatest
     last_low: object  # (..., 10) of the previous window
     last_high: object  # (..., 10)
@@ -200,19 +202,21 @@ def settle_start(batch_shape=(), xp=np) -> SettleState:
     return SettleState(inf, -inf, inf, -inf, xp.zeros(batch_shape, dtype=xp.int32))
 
 
-def settle_observe(state: SettleState, qvel, tip_pos, wrench) -> SettleState:
-    """The state with this control period's joint speeds qvel (..., n), true tip (..., 3) and
-    sensed wrench (..., 6) in the current window's envelope."""
-    xp = tip_pos.__array_namespace__()
+def settle_observe(state: SettleState, qvel, tcp_pos, wrench) -> SettleState:
+    """The state with this control period's joint speeds qvel (..., n), tcp position (..., 3)
+    (what a robot measures; the peg is rigid on the flange) and sensed wrench (..., 6) in the
+    current window's envelope."""
+    xp = tcp_pos.__array_namespace__()
     speed = xp.max(xp.abs(qvel), axis=-1, keepdims=True)
-    x = xp.concat([tip_pos, wrench, speed], axis=-1)
+    x = xp.concat([tcp_pos, wrench, speed], axis=-1)
     return state._replace(low=xp.minimum(state.low, x), high=xp.maximum(state.high, x))
 
 
-def settle_close(state: SettleState, step, config: TrialConfig) -> SettleState:
-    """The state after control period `step` (the trial's, from 0) has been observed: when it
-    closes a window, the window's envelope is compared with the previous window's (if that one
-    started at or after settle_after_s) and becomes the previous window."""
+def settle_close(state: SettleState, step, config: TrialConfig, period: int = 1) -> SettleState:
+    """The state after control period `step` (physics steps since the trial's start) has been
+    observed, the next one `period` steps later: when this one closes a window, the window's
+    envelope is compared with the previous window's (if that one started at or after
+    settle_after_s) and becomes the previous window."""
     xp = state.low.__array_namespace__()
     w = config.settle_steps
     tol = xp.asarray(
@@ -223,9 +227,10 @@ def settle_close(state: SettleState, step, config: TrialConfig) -> SettleState:
         (xp.abs(state.low - state.last_low) <= tol) & (xp.abs(state.high - state.last_high) <= tol),
         axis=-1,
     )
-    first = step + 1 - 2 * w  # the previous window's first step
-    counted = (first >= 0) & (first * config.timestep >= config.settle_after_s - 1e-9)
-    closes = (step + 1) % w == 0
+    window = step // w
+    first = (window - 1) * w  # the previous window's first step
+    counted = (window >= 1) & (first * config.timestep >= config.settle_after_s - 1e-9)
+    closes = (step + period) // w > window
     matched = xp.where(closes, xp.where(same & counted, state.matched + 1, 0), state.matched)
     c = closes[..., None]
     return SettleState(
@@ -237,13 +242,13 @@ def settle_close(state: SettleState, step, config: TrialConfig) -> SettleState:
     )
 
 
-def settle_update(state: SettleState, step, qvel, tip_pos, wrench, config: TrialConfig):
+def settle_update(state: SettleState, step, qvel, tcp_pos, wrench, config, period: int = 1):
     """`settle_close` after `settle_observe`: one control period of the settle test (see
     TrialConfig.end_settled). Windows are steps [k W, (k + 1) W) of the trial,
     W = config.settle_steps. Written over the array-API namespace of its inputs, like the
     controller: the engines and the robot runtime share it; it acts on each trial alone.
     """
-    return settle_close(settle_observe(state, qvel, tip_pos, wrench), step, config)
+    return settle_close(settle_observe(state, qvel, tcp_pos, wrench), step, config, period)
 
 
 def is_settled(state: SettleState, config: TrialConfig):

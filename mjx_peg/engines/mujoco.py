@@ -509,7 +509,7 @@ class _Lane:
         if cfg.end_settled:  # settle_update, the window test only on the rows it concerns
             low, high = self.settle_low[:n], self.settle_high[:n]
             state = settle_observe(
-                SettleState(low, high, None, None, None), m.qvel, tip_pos, wrench
+                SettleState(low, high, None, None, None), m.qvel, tcp_pos, wrench
             )
             low[...], high[...] = state.low, state.high
             rows = np.flatnonzero((step + 1) % cfg.settle_steps == 0)
