@@ -124,12 +124,15 @@ def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
     again = run_trials(specs, params, engine="mujoco", config=config, threads=2, slots_per_thread=3)
     assert {id(s) for free in cpu_engine._FREE_SIMS.values() for s in free} == cached
     threaded = run_trials(specs, params, engine="mujoco", config=config, threads=1, batch_threads=2)
-    for other in (lanes, again, threaded):
+    other_data = run_trials(specs, params, engine="mujoco", config=config,
+                            persistent=not cpu_engine.PERSISTENT)  # fmt: skip
+    for other in (lanes, again, threaded, other_data):
         for name, value in local.to_arrays().items():
             np.testing.assert_array_equal(getattr(other, name), value, err_msg=name)
 
 
-def test_batch_step_is_mj_step2_then_mj_step1():
+@pytest.mark.parametrize("persistent", [True, False])
+def test_batch_step_is_mj_step2_then_mj_step1(persistent):
     """The engine's physics: Batch.step(stage=mjSTAGE_VEL) from forward(ACC), forward(VEL) is
     C MuJoCo's start_trial, mj_step1, then (ctrl, mj_step2, mj_step1) per step, to the bit."""
     import mujoco
@@ -139,7 +142,7 @@ def test_batch_step_is_mj_step2_then_mj_step1():
 
     specs, n = _mixed_specs(40, seed=9), 4
     specs = specs.take(np.flatnonzero(specs.shape_id == 1)[:n])  # squares
-    sims = cpu_engine._Sims(("square", float(specs.size[0])), n, nthread=2)
+    sims = cpu_engine._Sims(("square", float(specs.size[0])), n, nthread=2, persistent=persistent)
     models = [scene.load_model("square", float(specs.size[0])) for _ in range(n)]
     datas = [mujoco.MjData(m) for m in models]
     for i in range(n):

@@ -58,6 +58,7 @@ from mjx_peg.trial import (
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
 SLOTS_PER_THREAD = 512
+PERSISTENT = True  # see run_trials
 STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 STAGE_ACC = int(mujoco.mjtStage.mjSTAGE_ACC)
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -177,8 +178,8 @@ class _Sims:
     Used by one lane at a time (a Batch serves one Python thread).
     """
 
-    def __init__(self, key: tuple[str, float], nsim: int, nthread: int):
-        self.key, self.nsim, self.nthread = key, nsim, nthread
+    def __init__(self, key: tuple[str, float], nsim: int, nthread: int, persistent: bool = True):
+        self.key, self.nsim, self.kind = key, nsim, (nthread, persistent)
         self.model = m = scene.load_model(*key)
         self.trial_model = scene.load_model(*key)  # start_trial edits it; its fields are copied
         self.trial_data = mujoco.MjData(self.trial_model)
@@ -187,7 +188,7 @@ class _Sims:
         assert np.all(ids.actuator_ids == np.arange(6)), "ctrl must be in joint order"
         assert m.site_bodyid[ids.tcp_site] == ids.wrist3_body, "tcp must be on the wrist-3 body"
         assert _chain_is_every_dof(m, ids.wrist3_body), "the tcp must move with every dof"
-        self.batch = b = mujoco.batch.Batch(m, nsim, nthread=nthread, persistent=True)
+        self.batch = b = mujoco.batch.Batch(m, nsim, nthread=nthread, persistent=persistent)
         self.fields = {name: b.expand(name) for name in TRIAL_MODEL_FIELDS}
         self.state = b.state
         self.time, self.qvel, self.ctrl = b.bind("time"), b.bind("qvel"), b.bind("ctrl")
@@ -221,9 +222,9 @@ class _Sims:
         return d
 
     def forward(self, ids: np.ndarray) -> None:
-        """mj_forward at the loaded states (the tare reading), then the position and velocity
-        stages the next step continues from."""
-        for stage in (STAGE_ACC, STAGE_VEL):
+        """mj_forward at the loaded states (the tare reading), then (persistent batch) the
+        position and velocity stages the next step continues from."""
+        for stage in (STAGE_ACC, STAGE_VEL)[: 1 + self.kind[1]]:
             try:
                 self.batch.forward(ids, stage=stage)
             except mujoco.batch.SimulationError:
@@ -275,23 +276,23 @@ _FREE_SIMS: dict[tuple, list[_Sims]] = {}
 _FREE_LOCK = threading.Lock()
 
 
-def _take_sims(key: tuple[str, float], nsim: int, nthread: int) -> _Sims:
+def _take_sims(key: tuple[str, float], nsim: int, kind: tuple[int, bool]) -> _Sims:
     with _FREE_LOCK:
-        free = _FREE_SIMS.get((key, nthread), [])
+        free = _FREE_SIMS.get((key, kind), [])
         fits = [s for s in free if s.nsim >= nsim]
         if fits:
             sims = min(fits, key=lambda s: s.nsim)
             free.remove(sims)
             sims.reset()
             return sims
-    sims = _Sims(key, nsim, nthread)
+    sims = _Sims(key, nsim, *kind)
     sims.reset()
     return sims
 
 
 def _give_sims(sims: _Sims) -> None:
     with _FREE_LOCK:
-        _FREE_SIMS.setdefault((sims.key, sims.nthread), []).append(sims)
+        _FREE_SIMS.setdefault((sims.key, sims.kind), []).append(sims)
 
 
 def _keep_sims(keys: set) -> None:
@@ -349,11 +350,11 @@ class _Lane:
     """Up to `slots` trials stepped together by one thread; live trials in rows [0, n), sorted by
     (scene, simulation). Row i: `spec_index[i]`, `step[i]`, `goal_pos[i]`, ..."""
 
-    def __init__(self, specs, params, config: TrialConfig, slots: int, nsim: dict, nthread: int):
+    def __init__(self, specs, params, config: TrialConfig, slots: int, nsim: dict, kind: tuple):
         self.specs, self.params, self.config = specs, params, config
         self.basis = fitted_basis(config.dmp)
         self.slots = b = slots
-        self.nsim, self.nthread = nsim, nthread  # simulations per scene key, C threads per batch
+        self.nsim, self.kind = nsim, kind  # simulations per scene; batches' (nthread, persistent)
         self.scenes: list[_Sims] = []  # in order of first use
         self._scene_of: dict[tuple, int] = {}
         eye = np.eye(3)
@@ -380,7 +381,7 @@ class _Lane:
         k = self._scene_of.get(key)
         if k is None:
             k = self._scene_of[key] = len(self.scenes)
-            self.scenes.append(_take_sims(key, self.nsim[key], self.nthread))
+            self.scenes.append(_take_sims(key, self.nsim[key], self.kind))
         return k
 
     def _sort(self, n: int, keep: np.ndarray | None = None) -> None:
@@ -584,7 +585,7 @@ class _Lane:
                 _give_sims(sims)
 
 
-def run_lanes(specs, params, config, threads: int, slots: int, batch_threads: int, source,
+def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple[int, bool], source,
               observer=None) -> None:  # fmt: skip
     """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
 
@@ -595,7 +596,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, batch_threads: in
         key = _scene_key(specs, index)
         count[key] = count.get(key, 0) + 1
     nsim = {key: min(slots, c) for key, c in count.items()}
-    lanes = [_Lane(specs, params, config, slots, nsim, batch_threads) for _ in range(threads)]
+    lanes = [_Lane(specs, params, config, slots, nsim, kind) for _ in range(threads)]
     errors: list[BaseException] = []
 
     def work(lane, report=False):
@@ -620,7 +621,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, batch_threads: in
         source.stop()
         raise
     source.flush()
-    _keep_sims(set((key, batch_threads) for key in count))
+    _keep_sims(set((key, kind) for key in count))
     if errors:
         raise errors[0]
 
@@ -635,6 +636,7 @@ def run_trials(
     observer: Callable | None = None,
     workers: int | None = None,
     batch_threads: int | None = None,
+    persistent: bool = PERSISTENT,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -642,6 +644,9 @@ def run_trials(
     may use, at most one per trial); workers: the same (its name when lanes were processes).
     slots_per_thread: rows per lane (default: SLOTS_PER_THREAD, or fewer to spread the trials
     over every lane). batch_threads: C threads of each lane's batches (default 1).
+    persistent: one MjData per simulation (`mujoco.batch.Batch(persistent=True)`: each step
+    continues from the position and velocity stages the controller read) or one per C thread
+    (a step recomputes them, but its memory stays in the cache); the same results.
     progress(count) is called in the caller's thread as trials finish. observer(lane, rows,
     wrench), if given, is called every control period with a lane, its live rows and their
     wrenches (for demos and benchmarks); it needs threads=1, its default then.
@@ -659,7 +664,8 @@ def run_trials(
         1, min(SLOTS_PER_THREAD, -(-n // threads))
     )
     queue = _Queue(n, progress)
-    run_lanes(specs, params, config, threads, slots, batch_threads, queue, observer)
+    kind = (batch_threads, bool(persistent))
+    run_lanes(specs, params, config, threads, slots, kind, queue, observer)
     return to_result(queue.records)
 
 
