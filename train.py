@@ -2,7 +2,7 @@
 
 import sys
 
-from mjx_peg.train_cli import main
+from mjx_peg.learn.cli import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -19,10 +19,10 @@ import mujoco
 import numpy as np
 from engines_agree import agreement_specs  # benchmarks/ is on sys.path when run
 
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import run_trials
-from mjx_peg.scene import SHAPES
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.scene import SHAPES
 
 
 def snapshots(specs, rows, step: int, config: TrialConfig) -> dict[int, tuple]:

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
-from mjx_peg import control, dmp, params
+from mjx_peg.skill import dmp, osc, params
 
 HEADING = "## Controller step"
 CONFIG = dmp.DMPConfig()
@@ -48,21 +48,19 @@ def controller_step(
     bias,
 ):
     """(..., 6) joint torques of one compliant-DMP step (the composition timed here)."""
-    y, yd = control.task_state(pos, rot, vel[..., :3], vel[..., 3:], goal_pos, goal_rot)
+    y, yd = osc.task_state(pos, rot, vel[..., :3], vel[..., 3:], goal_pos, goal_rot)
     s = dmp.phase(t, CONFIG.tau, CONFIG.alpha_s)
     f = dmp.forcing(s, WEIGHTS, CENTERS, WIDTHS)
     dy = dmp.compliance_offset(compliance, wrench)
     g_m = dmp.modified_goal(0.0 * y0, y0, f, k_y, dy)
     ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, CONFIG.tau)
-    u = control.osc_torque(
-        mass, jac, jdot_qdot, bias, control.world_from_task_accel(ydd, goal_rot), 0.01
-    )
-    return control.clamp_torque(u, LIMITS)
+    u = osc.osc_torque(mass, jac, jdot_qdot, bias, osc.world_from_task_accel(ydd, goal_rot), 0.01)
+    return osc.clamp_torque(u, LIMITS)
 
 
 def make_inputs(batch: int, seed: int = 0) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
-    from mjx_peg.rotations import matrix_from_rotvec
+    from mjx_peg.skill.rotations import matrix_from_rotvec
 
     p = params.controller_from_action(rng.normal(size=(batch, 38)))
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)

@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import run_trials
-from mjx_peg.task import TaskConfig, TrialSpec, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 
 def agreement_specs(

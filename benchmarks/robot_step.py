@@ -19,10 +19,10 @@ import time
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
-from mjx_peg.baseline import baseline_params
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime
 from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 HEADING = "## Robot runtime"
 

@@ -28,11 +28,11 @@ import mujoco.batch
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
-from mjx_peg import scene
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import mujoco as cpu_engine
-from mjx_peg.task import TaskConfig, sample_trials
-from mjx_peg.trial import TrialConfig, as_controller_params
+from mjx_peg.engines.trial import TrialConfig, as_controller_params
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -70,7 +70,7 @@ def record_states(specs, params, config, every):
 
 
 def _scene_key(specs, index):
-    return scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
+    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
 
 
 def _replay_part(specs, snaps, every, barrier):

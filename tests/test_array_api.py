@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_peg import control, dmp, params, rotations
+from mjx_peg.skill import dmp, osc, params, rotations
 
 TOL64 = 1e-6
 TOL32 = 1e-4
@@ -127,15 +127,15 @@ def _cases():
             lambda r: (*r.normal(size=(3, b, 6)), stiffness(r), 20 * r.uniform(1, 2, (b, 6))),
             all_batched,
         ),
-        "task_state": (control.task_state, controller_inputs, all_batched),
+        "task_state": (osc.task_state, controller_inputs, all_batched),
         "world_from_task_accel": (
-            control.world_from_task_accel,
+            osc.world_from_task_accel,
             lambda r: (r.normal(size=(b, 6)), _rotations(r, b)),
             all_batched,
         ),
-        "damped_pinv": (lambda j: control.damped_pinv(j, 0.01), lambda r: (_jacobian(r, b),), 0),
+        "damped_pinv": (lambda j: osc.damped_pinv(j, 0.01), lambda r: (_jacobian(r, b),), 0),
         "osc_torque": (
-            lambda m, j, jd, h, ydd: control.osc_torque(m, j, jd, h, ydd, 0.01),
+            lambda m, j, jd, h, ydd: osc.osc_torque(m, j, jd, h, ydd, 0.01),
             lambda r: (
                 _mass(r, b),
                 _jacobian(r, b),
@@ -146,7 +146,7 @@ def _cases():
             all_batched,
         ),
         "clamp_torque": (
-            control.clamp_torque,
+            osc.clamp_torque,
             lambda r: (200 * r.normal(size=(b, 6)), np.array([150.0, 150, 150, 28, 28, 28])),
             (0, None),
         ),
@@ -238,7 +238,7 @@ def _torque_from_action(action, wrench, y, yd, y0, s):
     ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, 1.0)
     rng = np.random.default_rng(5)
     mass, jac = jnp.asarray(_mass(rng, 1)[0]), jnp.asarray(_jacobian(rng, 1)[0])
-    u = control.osc_torque(mass, jac, jnp.zeros(6), jnp.ones(6), ydd, 0.01)
+    u = osc.osc_torque(mass, jac, jnp.zeros(6), jnp.ones(6), ydd, 0.01)
     return jnp.sum(u**2)
 
 
@@ -270,10 +270,13 @@ _NO_JAX = textwrap.dedent(
     """
     import sys
     sys.modules["jax"] = None  # `import jax` now raises ImportError
-    import mjx_peg.rotations, mjx_peg.dmp, mjx_peg.control, mjx_peg.params
+    import mjx_peg.skill.rotations, mjx_peg.skill.dmp, mjx_peg.skill.osc, mjx_peg.skill.params
     assert "numpy" not in sys.modules, "a module imported numpy at top level"
     import numpy as np
-    from mjx_peg import control, dmp, params, rotations
+    from mjx_peg.skill import osc
+    from mjx_peg.skill import dmp
+    from mjx_peg.skill import params
+    from mjx_peg.skill import rotations
     p = params.controller_from_action(np.zeros((2, 38)))
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)
     config = dmp.DMPConfig()
@@ -283,7 +286,7 @@ _NO_JAX = textwrap.dedent(
     g_m = dmp.modified_goal(np.zeros(6), np.ones((2, 6)), f, k_y, np.zeros(6))
     ydd = dmp.dmp_acceleration(np.ones((2, 6)), np.zeros(6), g_m, k_y,
                                dmp.critical_damping(k_y, 1.0), 1.0)
-    u = control.osc_torque(np.eye(6), np.eye(6), np.zeros(6), np.zeros(6), ydd, 0.01)
+    u = osc.osc_torque(np.eye(6), np.eye(6), np.zeros(6), np.zeros(6), ydd, 0.01)
     assert u.shape == (2, 6) and np.all(np.isfinite(u))
     assert rotations.rotvec_from_matrix(np.eye(3)).shape == (3,)
     assert not any(m.startswith("jax") for m, v in sys.modules.items() if v is not None)

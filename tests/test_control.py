@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mjx_peg import control, dmp
-from mjx_peg.rotations import matrix_from_rotvec, rotvec_from_matrix, skew
+from mjx_peg.skill import dmp, osc
+from mjx_peg.skill.rotations import matrix_from_rotvec, rotvec_from_matrix, skew
 
 H = 1e-6  # finite-difference step (s)
 PINV_DAMPING = 0.01  # as in TrialConfig
@@ -66,7 +66,7 @@ def _load_arm(kind):
     if kind == "test-arm":
         model = mujoco.MjModel.from_xml_string(_arm_xml())
     else:
-        scene = pytest.importorskip("mjx_peg.scene")
+        scene = pytest.importorskip("mjx_peg.world.scene")
         model = scene.load_model("square", 0.05)
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # free space
     assert model.opt.timestep == pytest.approx(TIMESTEP), "the controller runs at 500 Hz"
@@ -110,14 +110,14 @@ GOAL_ROT = Rotation.from_rotvec([math.pi, 0.0, 0.3]).as_matrix()
 
 def test_task_position_and_rotation_definitions():
     pos, rot, vel, omega = _trajectory(0.7)
-    y, yd = control.task_state(pos, rot, vel, omega, GOAL_POS, GOAL_ROT)
+    y, yd = osc.task_state(pos, rot, vel, omega, GOAL_POS, GOAL_ROT)
     np.testing.assert_allclose(y[:3], GOAL_ROT.T @ (pos - GOAL_POS), atol=1e-14)
     # theta = rotvec(R R_g^T), a world-frame rotation vector, expressed in the goal frame.
     theta_world = Rotation.from_matrix(rot @ GOAL_ROT.T).as_rotvec()
     np.testing.assert_allclose(y[3:], GOAL_ROT.T @ theta_world, atol=1e-12)
     np.testing.assert_allclose(yd, np.concatenate([GOAL_ROT.T @ vel, GOAL_ROT.T @ omega]))
     # At the goal the state is zero.
-    y_goal, _ = control.task_state(GOAL_POS, GOAL_ROT, vel, omega, GOAL_POS, GOAL_ROT)
+    y_goal, _ = osc.task_state(GOAL_POS, GOAL_ROT, vel, omega, GOAL_POS, GOAL_ROT)
     np.testing.assert_allclose(y_goal, 0.0, atol=1e-15)
 
 
@@ -125,9 +125,9 @@ def test_task_position_and_rotation_definitions():
 def test_task_velocity_matches_finite_differences(seed):
     """x_dot = yd[:3] exactly; theta_dot = J_l(theta)^-1 yd[3:] (yd holds angular velocity)."""
     t = 0.4
-    y_plus, _ = control.task_state(*_trajectory(t + H, seed), GOAL_POS, GOAL_ROT)
-    y_minus, _ = control.task_state(*_trajectory(t - H, seed), GOAL_POS, GOAL_ROT)
-    y, yd = control.task_state(*_trajectory(t, seed), GOAL_POS, GOAL_ROT)
+    y_plus, _ = osc.task_state(*_trajectory(t + H, seed), GOAL_POS, GOAL_ROT)
+    y_minus, _ = osc.task_state(*_trajectory(t - H, seed), GOAL_POS, GOAL_ROT)
+    y, yd = osc.task_state(*_trajectory(t, seed), GOAL_POS, GOAL_ROT)
     y_dot_fd = (y_plus - y_minus) / (2 * H)
     np.testing.assert_allclose(y_dot_fd[:3], yd[:3], atol=1e-7)
     np.testing.assert_allclose(_left_jacobian(y[3:]) @ y_dot_fd[3:], yd[3:], atol=1e-7)
@@ -144,9 +144,9 @@ def test_fixed_axis_rotation_velocity_is_theta_dot():
     zero = np.zeros(3)
     t = 0.9
     (r_p, _), (r_m, _), (r, omega) = pose(t + H), pose(t - H), pose(t)
-    th_p = control.task_state(zero, r_p, zero, zero, zero, GOAL_ROT)[0][3:]
-    th_m = control.task_state(zero, r_m, zero, zero, zero, GOAL_ROT)[0][3:]
-    _, yd = control.task_state(zero, r, zero, omega, zero, GOAL_ROT)
+    th_p = osc.task_state(zero, r_p, zero, zero, zero, GOAL_ROT)[0][3:]
+    th_m = osc.task_state(zero, r_m, zero, zero, zero, GOAL_ROT)[0][3:]
+    _, yd = osc.task_state(zero, r, zero, omega, zero, GOAL_ROT)
     np.testing.assert_allclose((th_p - th_m) / (2 * H), yd[3:], atol=1e-8)
 
 
@@ -157,10 +157,10 @@ def test_world_from_task_accel_inverts_the_velocity_map():
     zero = np.zeros(3)
 
     def yd_at(t):
-        return control.task_state(zero, np.eye(3), v0 + acc * t, w0 + alpha * t, zero, GOAL_ROT)[1]
+        return osc.task_state(zero, np.eye(3), v0 + acc * t, w0 + alpha * t, zero, GOAL_ROT)[1]
 
     ydd_task = (yd_at(0.5 + H) - yd_at(0.5 - H)) / (2 * H)
-    world = control.world_from_task_accel(ydd_task, GOAL_ROT)
+    world = osc.world_from_task_accel(ydd_task, GOAL_ROT)
     np.testing.assert_allclose(world, np.concatenate([acc, alpha]), atol=1e-8)
 
 
@@ -171,12 +171,12 @@ def test_damped_pinv_is_pinv_without_damping_and_bounded_near_singularity():
     rng = np.random.default_rng(4)
     for n in (6, 7):
         jac = rng.normal(size=(5, 6, n))
-        np.testing.assert_allclose(control.damped_pinv(jac, 0.0), np.linalg.pinv(jac), atol=1e-9)
+        np.testing.assert_allclose(osc.damped_pinv(jac, 0.0), np.linalg.pinv(jac), atol=1e-9)
     u, _, vt = np.linalg.svd(rng.normal(size=(6, 6)))
     sigma = np.array([1.0, 0.5, 0.2, 0.1, 1e-3, 0.0])  # near and at a singularity
     jac = u @ np.diag(sigma) @ vt
     lam = 0.01
-    pinv = control.damped_pinv(jac, lam)
+    pinv = osc.damped_pinv(jac, lam)
     expected = vt.T @ np.diag(sigma / (sigma**2 + lam**2)) @ u.T
     np.testing.assert_allclose(pinv, expected, atol=1e-9)
     assert np.linalg.norm(pinv, 2) <= 1.0 / (2 * lam) + 1e-9
@@ -184,9 +184,7 @@ def test_damped_pinv_is_pinv_without_damping_and_bounded_near_singularity():
 
 def test_clamp_torque():
     u = np.array([[200.0, -200.0, 10.0, 30.0, -30.0, 0.0]])
-    np.testing.assert_array_equal(
-        control.clamp_torque(u, TORQUE_LIMITS), [[150, -150, 10, 28, -28, 0]]
-    )
+    np.testing.assert_array_equal(osc.clamp_torque(u, TORQUE_LIMITS), [[150, -150, 10, 28, -28, 0]])
 
 
 # ------------------------------------------------------------------------- OSC with C MuJoCo
@@ -231,7 +229,7 @@ def test_osc_realizes_the_commanded_acceleration(kind):
     mujoco.mj_forward(model, data)
     _, _, _, jac, jdqd, mass, bias = _kinematics(model, data, site)
     ydd = np.array([0.5, -0.3, 1.0, 0.8, -0.4, 0.2])
-    data.ctrl[:] = control.osc_torque(mass, jac, jdqd, bias, ydd, 1e-6)
+    data.ctrl[:] = osc.osc_torque(mass, jac, jdqd, bias, ydd, 1e-6)
     mujoco.mj_forward(model, data)
     np.testing.assert_allclose(jac @ data.qacc + jdqd, ydd, atol=1e-6)
 
@@ -251,7 +249,7 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     turn = np.radians(10.0) * np.array([0.6, 0.0, 0.8])
     goal_rot = matrix_from_rotvec(turn) @ start_rot
     zero = np.zeros(3)
-    y0, _ = control.task_state(start_pos, start_rot, zero, zero, goal_pos, goal_rot)
+    y0, _ = osc.task_state(start_pos, start_rot, zero, zero, goal_pos, goal_rot)
     k_y = dmp.stiffness_diag(100.0, 60.0)
     d_y = dmp.critical_damping(k_y, config.tau)
     duration = 3.0
@@ -262,17 +260,17 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     for i, t in enumerate(t_ref):
         mujoco.mj_step1(model, data)
         pos, rot, vel, jac, jdqd, mass, bias = _kinematics(model, data, site)
-        y, yd = control.task_state(pos, rot, vel[:3], vel[3:], goal_pos, goal_rot)
+        y, yd = osc.task_state(pos, rot, vel[:3], vel[3:], goal_pos, goal_rot)
         pos_err = max(pos_err, np.linalg.norm(y[:3] - y_ref[i, :3]))
         relative = matrix_from_rotvec(y[3:]) @ matrix_from_rotvec(y_ref[i, 3:]).T
         ang_err = max(ang_err, np.linalg.norm(rotvec_from_matrix(relative)))
         f = dmp.forcing(dmp.phase(t, config.tau, config.alpha_s), weights, centers, widths)
         g_m = dmp.scaled_modified_goal(np.zeros(6), y0, f, config.k_ref, np.zeros(6))
         ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, config.tau)
-        u = control.osc_torque(
-            mass, jac, jdqd, bias, control.world_from_task_accel(ydd, goal_rot), PINV_DAMPING
+        u = osc.osc_torque(
+            mass, jac, jdqd, bias, osc.world_from_task_accel(ydd, goal_rot), PINV_DAMPING
         )
-        data.ctrl[:] = control.clamp_torque(u, TORQUE_LIMITS)
+        data.ctrl[:] = osc.clamp_torque(u, TORQUE_LIMITS)
         mujoco.mj_step2(model, data)
     final = np.linalg.norm(y[:3])
     print(

@@ -3,9 +3,9 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mjx_peg import controller
-from mjx_peg.baseline import baseline_controller
-from mjx_peg.trial import TrialConfig, fitted_basis
+from mjx_peg.engines.trial import TrialConfig, control_config, fitted_basis
+from mjx_peg.skill import control_step
+from mjx_peg.skill.baseline import baseline_controller
 
 
 def _random_rot(rng, n=None):
@@ -25,7 +25,7 @@ def test_contact_force_at_tcp_gives_force_and_no_moment():
         load_m = -np.cross(p_tcp - p_ft, f_contact)
         force_site = tare[:3] + rot_ft.T @ load_f
         torque_site = tare[3:] + rot_ft.T @ load_m
-        w = controller.wrench_in_goal_frame(
+        w = control_step.wrench_in_goal_frame(
             force_site, torque_site, tare, rot_ft, p_ft - p_tcp, goal_rot
         )
         np.testing.assert_allclose(w[:3], goal_rot.T @ f_contact, atol=1e-12)
@@ -34,16 +34,16 @@ def test_contact_force_at_tcp_gives_force_and_no_moment():
 
 def test_goal_rotation_points_the_tool_down():
     yaw = np.array([0.0, 0.3, np.pi / 2])
-    rot = controller.goal_rotation(yaw)
+    rot = control_step.goal_rotation(yaw)
     np.testing.assert_allclose(rot[:, :, 2], [[0, 0, -1]] * 3, atol=1e-15)
     np.testing.assert_allclose(rot[:, 0, 0], np.cos(yaw))
     np.testing.assert_allclose(np.linalg.det(rot), 1.0)
 
 
 def _inputs(rng, batch, params):
-    goal_rot = controller.goal_rotation(rng.uniform(0, np.pi / 2, batch))
+    goal_rot = control_step.goal_rotation(rng.uniform(0, np.pi / 2, batch))
     goal_pos = rng.normal(size=(batch, 3))
-    skill = controller.make_skill(
+    skill = control_step.make_skill(
         params, goal_pos, goal_rot, rng.normal(size=(batch, 6)) * 0.05, 1.0
     )
     jac = rng.normal(size=(batch, 6, 6)) + 3 * np.eye(6)
@@ -58,7 +58,7 @@ def _inputs(rng, batch, params):
         qvel=rng.normal(size=(batch, 6)) * 0.1,
         mass=mass,
         bias=rng.normal(size=(batch, 6)),
-        wrench_goal=rng.normal(size=(batch, 6)) * 10,
+        wrench=rng.normal(size=(batch, 6)) * 10,
     )
     small = Rotation.from_rotvec(rng.normal(size=(batch, 3)) * 0.1).as_matrix()
     args["tcp_rot"] = small @ goal_rot
@@ -66,17 +66,8 @@ def _inputs(rng, batch, params):
 
 
 def _torque(skill, basis, args, xp=np):
-    cfg = TrialConfig()
-    return controller.skill_torque(
-        skill,
-        basis,
-        **args,
-        torque_limits=xp.asarray([150.0, 150, 150, 28, 28, 28]),
-        tau=cfg.dmp.tau,
-        alpha_s=cfg.dmp.alpha_s,
-        k_ref=cfg.dmp.k_ref,
-        pinv_damping=cfg.pinv_damping,
-    )
+    config = control_config(TrialConfig(), xp)
+    return control_step.skill_torque(config, skill, basis, control_step.Measurement(**args))
 
 
 def test_at_rest_on_the_goal_the_torque_is_the_bias():
@@ -89,7 +80,7 @@ def test_at_rest_on_the_goal_the_torque_is_the_bias():
         tcp_rot=skill.goal_rot,
         qvel=np.zeros((4, 6)),
         jdot_qdot=np.zeros((4, 6)),
-        wrench_goal=np.zeros((4, 6)),
+        wrench=np.zeros((4, 6)),
         bias=rng.uniform(-5, 5, (4, 6)),
     )
     u = _torque(skill, fitted_basis(TrialConfig().dmp), args)

@@ -1,11 +1,12 @@
-"""`python -m mjx_peg.demo`: one trial watched, and one trial of an evaluation replayed."""
+"""The demo CLI: one trial watched, and one trial of an evaluation replayed."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mjx_peg import demo, evaluate
+from mjx_peg.evaluation import demo
+from mjx_peg.evaluation import grid as evaluation
 
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,4", "--angular-deg", "6",
@@ -17,13 +18,13 @@ EVAL = [
 @pytest.fixture(scope="module")
 def eval_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("eval")
-    assert evaluate.main([*EVAL, "--out", str(out)]) == 0
+    assert evaluation.main([*EVAL, "--out", str(out)]) == 0
     return out
 
 
 def test_replay_ends_as_the_evaluation_recorded(eval_dir, tmp_path, capsys):
-    config, _ = evaluate.read_eval_dir(eval_dir)
-    recorded = evaluate.load_range(eval_dir, config, 1)
+    config, _ = evaluation.read_eval_dir(eval_dir)
+    recorded = evaluation.load_range(eval_dir, config, 1)
     assert recorded["success"].any() and not recorded["success"].all()  # both kinds to pick
     for kind in ("success", "failure"):
         index = int(np.flatnonzero(recorded["success"] == (kind == "success"))[0])
@@ -40,14 +41,14 @@ def test_replay_ends_as_the_evaluation_recorded(eval_dir, tmp_path, capsys):
 def test_replay_reports_a_different_outcome(eval_dir, tmp_path, capsys, monkeypatch):
     """If the replay does not end as recorded (here: the evaluation's record is altered), the
     demo says so and exits 1."""
-    real = evaluate.load_range
+    real = evaluation.load_range
 
     def altered(out, config, index):
         arrays = real(out, config, index)
         arrays["time_s"] = arrays["time_s"] + 0.5
         return arrays
 
-    monkeypatch.setattr(evaluate, "load_range", altered)
+    monkeypatch.setattr(evaluation, "load_range", altered)
     argv = ["--replay", str(eval_dir), "--range", "0", "--frames", "0", "--out", str(tmp_path)]
     assert demo.main(argv) == 1
     assert "(DIFFERENT)" in capsys.readouterr().out
@@ -66,7 +67,7 @@ def test_bad_replay_is_one_clear_line(eval_dir, tmp_path, capsys, extra, message
     argv = ["--replay", str(eval_dir), *extra, "--out", str(tmp_path / "o")]
     assert demo.main(argv) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith("python -m mjx_peg.demo: error:"), err
+    assert len(err.splitlines()) == 1 and err.startswith(f"{demo.PROG}: error:"), err
     assert message in err, err
     assert not (tmp_path / "o").exists()
 
@@ -89,7 +90,7 @@ def test_bad_input_is_one_clear_line(tmp_path, capsys, argv, message):
 
 def test_demo_with_a_policy_directory(tmp_path, capsys):
     """--policy RUN_DIR drives the trial with the policy's 38 numbers for that trial."""
-    from mjx_peg.policy import load_policy, save_policy
+    from mjx_peg.policy.export import load_policy, save_policy
 
     rng = np.random.default_rng(0)
     layers = [(0.1 * rng.normal(size=(8, 16)), np.zeros(16)), (np.zeros((16, 38)), np.zeros(38))]

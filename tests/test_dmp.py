@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mjx_peg import dmp
+from mjx_peg.skill import dmp
 
 CONFIG = dmp.DMPConfig()
 Y0 = np.array([0.10, -0.05, 0.20, 0.10, -0.15, 0.08])  # m, m, m, rad, rad, rad

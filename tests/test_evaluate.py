@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjx_peg import evaluate
-from mjx_peg import evaluate_stats as es
-from mjx_peg.evaluate_plots import (
+from mjx_peg.evaluation import grid as evaluation
+from mjx_peg.evaluation import stats as es
+from mjx_peg.evaluation.plots import (
     grid_matrix,
     paper_bars,
     quarter_stats_by_metric,
@@ -66,7 +66,7 @@ def test_quarters_split_each_axis_at_its_middle():
             np.sort(grid.success_pct[grid.quarter == q]), np.sort(QUARTER_SUCCESS[q])
         )
     # The paper grid: 25 linear ranges (12 small), 14 angular (7 small, up to 6 deg).
-    lin, ang, trials = evaluate.PRESETS["paper"]
+    lin, ang, trials = evaluation.PRESETS["paper"]
     assert (len(lin), len(ang), trials) == (25, 14, 200)
     assert lin[0] == pytest.approx(0.32) and lin[-1] == pytest.approx(8.0)
     assert ang[0] == pytest.approx(12 / 14) and ang[-1] == pytest.approx(12.0)
@@ -239,30 +239,30 @@ def test_heatmaps_are_written(tmp_path):
 
 
 def test_parse_ranges():
-    assert evaluate.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
-    assert evaluate.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
-    assert len(evaluate.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
+    assert evaluation.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
+    assert evaluation.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
+    assert len(evaluation.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
     for bad in ("", " , ", "3:1:1"):
         with pytest.raises(ValueError, match="--linear-mm is empty"):
-            evaluate.parse_ranges(bad, "--linear-mm")
+            evaluation.parse_ranges(bad, "--linear-mm")
     with pytest.raises(ValueError, match="cannot read"):
-        evaluate.parse_ranges("1,x", "--linear-mm")
+        evaluation.parse_ranges("1,x", "--linear-mm")
 
 
 def test_range_specs_depend_only_on_seed_and_index():
-    config = evaluate.EvalConfig(
+    config = evaluation.EvalConfig(
         "baseline", "custom", (1.0, 4.0), (2.0,), 5, ("circle", "square"), 50.0, 1.0, seed=3
     )
     assert config.shape_counts() == [3, 2]
-    a, b = evaluate.range_specs(config, 1), evaluate.range_specs(config, 1)
+    a, b = evaluation.range_specs(config, 1), evaluation.range_specs(config, 1)
     np.testing.assert_array_equal(a.loc_error, b.loc_error)
     assert list(a.shape_id) == [0, 0, 0, 1, 1]
     assert np.all(np.abs(a.loc_error[:, :2]) <= 0.004) and np.all(a.linear_range == 0.004)
-    other_seed = evaluate.range_specs(config.__class__(**{**config.__dict__, "seed": 4}), 1)
+    other_seed = evaluation.range_specs(config.__class__(**{**config.__dict__, "seed": 4}), 1)
     assert not np.allclose(a.board_pos, other_seed.board_pos)
     # Preset linear ranges scale with S (percent of S/2 in the paper) unless asked not to.
-    assert evaluate.grid_axes("paper-small", 25.0)[0][-1] == pytest.approx(4.0)
-    assert evaluate.grid_axes("paper-small", 25.0, linear_absolute=True)[0][-1] == 8.0
+    assert evaluation.grid_axes("paper-small", 25.0)[0][-1] == pytest.approx(4.0)
+    assert evaluation.grid_axes("paper-small", 25.0, linear_absolute=True)[0][-1] == 8.0
 
 
 TINY = [
@@ -274,14 +274,14 @@ TINY = [
 
 def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, capsys):
     full, resumed = tmp_path / "full", tmp_path / "resumed"
-    assert evaluate.main([*TINY, "--out", str(full)]) == 0
+    assert evaluation.main([*TINY, "--out", str(full)]) == 0
     for name in ("grid.csv", "summary.md", "success_heatmap.png", "time_heatmap.png"):
         assert (full / name).stat().st_size > 0, name
     assert (full / "paper_comparison.png").stat().st_size > 0  # circle + square, 50 mm: nominal
     rows = (full / "grid.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[1].startswith("0,0.5,1,Q1,4,")
 
-    real = evaluate.run_trials
+    real = evaluation.run_trials
     calls = []
 
     def interrupted(specs, *args, **kwargs):
@@ -290,39 +290,39 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
             raise KeyboardInterrupt
         return real(specs, *args, **kwargs)
 
-    monkeypatch.setattr(evaluate, "run_trials", interrupted)
-    assert evaluate.main([*TINY, "--out", str(resumed)]) == 130
+    monkeypatch.setattr(evaluation, "run_trials", interrupted)
+    assert evaluation.main([*TINY, "--out", str(resumed)]) == 130
     assert "2 of 4 ranges saved" in capsys.readouterr().err
     assert not (resumed / "grid.csv").exists()
     assert len(list((resumed / "ranges").glob("*.npz"))) == 2
 
     calls.clear()
-    monkeypatch.setattr(evaluate, "run_trials", lambda *a, **k: calls.append(1) or real(*a, **k))
-    assert evaluate.main([*TINY, "--out", str(resumed)]) == 0
+    monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1) or real(*a, **k))
+    assert evaluation.main([*TINY, "--out", str(resumed)]) == 0
     assert len(calls) == 2  # only the two unfinished ranges ran
     assert (resumed / "grid.csv").read_bytes() == (full / "grid.csv").read_bytes()
     # All four ranges in one engine call: the same results (chunking changes nothing).
     one_call = tmp_path / "one_call"
-    assert evaluate.main([*TINY, "--chunk-trials", "1000", "--out", str(one_call)]) == 0
+    assert evaluation.main([*TINY, "--chunk-trials", "1000", "--out", str(one_call)]) == 0
     assert (one_call / "grid.csv").read_bytes() == (full / "grid.csv").read_bytes()
 
     # A finished evaluation reruns nothing; --compare tests it against another.
     calls.clear()
     argv = [*TINY, "--out", str(resumed), "--compare", str(full), "--alternative", "greater"]
-    assert evaluate.main(argv) == 0 and not calls
+    assert evaluation.main(argv) == 0 and not calls
     summary = (resumed / "summary.md").read_text()
     assert f"## Against {full}" in summary and "after-vs-before" in summary
 
     # Resuming with another config is refused with one line.
     capsys.readouterr()
-    assert evaluate.main([*TINY[:-1], "--no-progress", "--seed", "8", "--out", str(full)]) == 2
+    assert evaluation.main([*TINY[:-1], "--no-progress", "--seed", "8", "--out", str(full)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("eval.py: error:") and "seed: 7 there, 8 now" in err
     assert len(err.splitlines()) == 1
 
 
 def test_learned_policy_directory(tmp_path):
-    from mjx_peg.policy import save_policy
+    from mjx_peg.policy.export import save_policy
 
     rng = np.random.default_rng(0)
     run = tmp_path / "run"
@@ -337,7 +337,7 @@ def test_learned_policy_directory(tmp_path):
         "--trials", "2", "--time-limit", "0.5", "--shape", "square", "--engine", "mujoco",
         "--no-progress", "--out", str(out),
     ]  # fmt: skip
-    assert evaluate.main(argv) == 0
+    assert evaluation.main(argv) == 0
     import json
 
     config = json.loads((out / "config.json").read_text())
@@ -369,7 +369,7 @@ def test_bad_input_is_one_clear_line(tmp_path, capsys, change, message):
             argv[argv.index(key) + 1] = value
         else:
             argv += [key, value]
-    assert evaluate.main(argv) == 2
+    assert evaluation.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert err.startswith("eval.py: error:") and message in err, err

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mjx_peg import kinematics as kin
+from mjx_peg.world import constants
+from mjx_peg.world import kinematics as kin
 
 TOOL = 0.12  # m, any tool length works for the pure-kinematics tests
 IK_TOL = 1e-6  # m and rad, the brief's round-trip tolerance
@@ -69,15 +70,15 @@ def test_fk_tcp_matches_the_mujoco_model():
     """The MJCF's `flange` and `tcp` sites equal DH tool0 and fk_tcp(q, PEG_LENGTH) at 50 q."""
     import mujoco
 
-    from mjx_peg import scene
+    from mjx_peg.world import scene
 
     model = scene.load_model("square", 0.05)
     data = mujoco.MjData(model)
-    adr = [model.jnt_qposadr[model.joint(name).id] for name in scene.JOINT_NAMES]
+    adr = [model.jnt_qposadr[model.joint(name).id] for name in constants.JOINT_NAMES]
     flange, tcp = model.site("flange").id, model.site("tcp").id
     q = _random_q(1, 50)
     pos_flange, rot_flange = kin.fk_flange(q)
-    pos_tcp, _ = kin.fk_tcp(q, scene.PEG_LENGTH)
+    pos_tcp, _ = kin.fk_tcp(q, constants.PEG_LENGTH)
     for i in range(len(q)):
         data.qpos[adr] = q[i]
         mujoco.mj_kinematics(model, data)

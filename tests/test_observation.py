@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from mjx_peg import observation
-from mjx_peg.task import TaskConfig, sample_trials
+from mjx_peg.policy import observation
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 
 def _obs(shape_id, yaw, size=0.05, pos=(0.45, 0.1)):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mjx_peg import params as P
+from mjx_peg.skill import params as P
 
 RANGES = P.DEFAULT_RANGES
 BOUND = np.array(RANGES.compliance_bound())

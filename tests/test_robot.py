@@ -10,10 +10,9 @@ import sys
 import numpy as np
 import pytest
 
-from mjx_peg import scene
-from mjx_peg.baseline import baseline_params
 from mjx_peg.engines import mujoco as cpu_engine
-from mjx_peg.policy import load_policy, save_policy
+from mjx_peg.engines.trial import TrialConfig, as_controller_params
+from mjx_peg.policy.export import load_policy, save_policy
 from mjx_peg.robot import cli
 from mjx_peg.robot.runtime import (
     HoleEstimate,
@@ -23,8 +22,9 @@ from mjx_peg.robot.runtime import (
     run_skill,
 )
 from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.task import TaskConfig, sample_trials
-from mjx_peg.trial import TrialConfig, as_controller_params
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world import constants
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 SHORT = TrialConfig(time_limit_s=3.0)
 
@@ -250,4 +250,4 @@ def test_sim_arm_rejects_bad_arguments():
         SimArm(specs, 0, command_steps=0)
     with pytest.raises(ValueError, match="trial index 1 is outside the 1 trials"):
         SimArm(specs, 1)
-    assert scene.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
+    assert constants.SHAPES[int(specs.shape_id[0])] in ("circle", "square")

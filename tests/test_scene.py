@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_peg import scene
+from mjx_peg.world import constants, scene
 
 SIZES_MM = (25, 37, 50, 60)
-ALL_SCENES = [(shape, mm) for shape in scene.SHAPES for mm in SIZES_MM]
-HOLE_SCENES = [(shape, mm) for shape in scene.SHAPES for mm in (25, 50, 60)]
+ALL_SCENES = [(shape, mm) for shape in constants.SHAPES for mm in SIZES_MM]
+HOLE_SCENES = [(shape, mm) for shape in constants.SHAPES for mm in (25, 50, 60)]
 
 
 # --- independent DH forward kinematics (written here on purpose, not imported) ------------------
@@ -96,7 +96,7 @@ def test_flange_site_equals_dh_tool0_at_random_q():
         pos_err = max(pos_err, np.linalg.norm(data.site_xpos[ids.flange_site] - T[:3, 3]))
         rot_err = max(rot_err, rot_angle(data.site_xmat[ids.flange_site].reshape(3, 3), T[:3, :3]))
         # tcp: PEG_LENGTH along the flange z, same orientation.
-        tcp = T[:3, 3] + scene.PEG_LENGTH * T[:3, 2]
+        tcp = T[:3, 3] + constants.PEG_LENGTH * T[:3, 2]
         assert np.linalg.norm(data.site_xpos[ids.tcp_site] - tcp) < 1e-6
     assert pos_err < 1e-6 and rot_err < 1e-6, (pos_err, rot_err)
 
@@ -113,13 +113,15 @@ def test_arm_dynamics_parameters():
     ]
     masses = [model.body(n).mass[0] for n in names]
     np.testing.assert_allclose(masses, [3.761, 8.058, 2.846, 1.37, 1.3, 0.365])
-    assert model.body("peg").mass[0] == pytest.approx(scene.PEG_MASS)
+    assert model.body("peg").mass[0] == pytest.approx(constants.PEG_MASS)
     assert model.nq == model.nv == model.nu == 6
     ids = scene.scene_ids(model)
     np.testing.assert_array_equal(ids.dof_adr, np.arange(6))
-    np.testing.assert_allclose(model.actuator_ctrlrange[ids.actuator_ids, 1], scene.TORQUE_LIMITS)
     np.testing.assert_allclose(
-        model.actuator_forcerange[ids.actuator_ids, 0], -np.array(scene.TORQUE_LIMITS)
+        model.actuator_ctrlrange[ids.actuator_ids, 1], constants.TORQUE_LIMITS
+    )
+    np.testing.assert_allclose(
+        model.actuator_forcerange[ids.actuator_ids, 0], -np.array(constants.TORQUE_LIMITS)
     )
     np.testing.assert_allclose(model.jnt_range[ids.joint_ids], [[-2 * np.pi, 2 * np.pi]] * 6)
     assert np.all(model.dof_armature[ids.dof_adr] > 0) and np.all(
@@ -142,7 +144,7 @@ def test_scene_compiles_in_mujoco_and_mjx(shape, mm):
     # Only peg-board and peg-table contacts: every other geom has contype = conaffinity = 0.
     peg, board = scene.peg_geom_ids(model), scene.board_geom_ids(model)
     table = model.geom("table").id
-    assert len(peg) == 1 and len(board) == scene.HOLE_SIDES[shape]
+    assert len(peg) == 1 and len(board) == constants.HOLE_SIDES[shape]
     others = np.setdiff1d(np.arange(model.ngeom), np.concatenate([peg, board, [table]]))
     assert np.all(model.geom_contype[others] == 0) and np.all(model.geom_conaffinity[others] == 0)
     assert np.all(model.geom_condim[np.concatenate([peg, board, [table]])] == 3)
@@ -190,7 +192,7 @@ def test_hole_clearance_measured_by_rays(shape, mm):
     board_only = np.array([0, 1, 0, 0, 0, 0], dtype=np.uint8)  # geom group 1 = board walls
     geomid = np.zeros(1, dtype=np.int32)
     angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
-    for z in (0.002, scene.HOLE_DEPTH / 2, scene.HOLE_DEPTH - 0.002):
+    for z in (0.002, constants.HOLE_DEPTH / 2, constants.HOLE_DEPTH - 0.002):
         origin = np.array([x, y, z])
         dist = np.empty(len(angles))
         for i, a in enumerate(angles):
@@ -198,13 +200,15 @@ def test_hole_clearance_measured_by_rays(shape, mm):
             dist[i] = mujoco.mj_ray(model, data, origin, vec, board_only, 1, -1, geomid)
             assert geomid[0] in board
         r_in, r_out = dist.min(), dist.max()
-        n = scene.HOLE_SIDES[shape]
+        n = constants.HOLE_SIDES[shape]
         width = 2 * math.sqrt(3) * r_in if shape == "triangle" else 2 * r_in
-        assert width == pytest.approx(scene.HOLE_SCALE[shape] * size, abs=1e-4)
+        assert width == pytest.approx(constants.HOLE_SCALE[shape] * size, abs=1e-4)
         assert r_out == pytest.approx(r_in / math.cos(math.pi / n), abs=5e-4)  # a regular n-gon
         # Reference orientation: an edge parallel to the board x axis on the board's -y side
         # (the ray along board -y meets it at r_in); the triangle's opposite corner is on +y.
-        r_spec = scene.HOLE_SCALE[shape] * size / (2 * math.sqrt(3) if shape == "triangle" else 2)
+        r_spec = (
+            constants.HOLE_SCALE[shape] * size / (2 * math.sqrt(3) if shape == "triangle" else 2)
+        )
         down = rot_z(yaw) @ np.array([0.0, -1.0, 0.0])
         assert mujoco.mj_ray(model, data, origin, down, board_only, 1, -1, geomid) == pytest.approx(
             r_spec, abs=1e-9
@@ -226,7 +230,7 @@ def test_hole_clearance_measured_by_rays(shape, mm):
         a, rho = rng.uniform(0, 2 * np.pi), rng.uniform(r_corner + 1e-4, scene.BOARD_MIN_HALF_WIDTH)
         start = np.array([x + rho * math.cos(a), y + rho * math.sin(a), 0.2])
         hit = mujoco.mj_ray(model, data, start, np.array([0, 0, -1.0]), board_only, 1, -1, geomid)
-        assert hit == pytest.approx(0.2 - scene.HOLE_DEPTH, abs=1e-9), (a, rho)
+        assert hit == pytest.approx(0.2 - constants.HOLE_DEPTH, abs=1e-9), (a, rho)
 
 
 @pytest.mark.parametrize(("shape", "mm"), ALL_SCENES)
@@ -288,7 +292,9 @@ def test_board_pose_grasp_and_friction_edits():
         model.geom_friction[np.concatenate([ids.peg_geoms, ids.board_geoms]), 0], 0.37
     )
     # The tcp stays nominal; the tip follows the peg.
-    tip = data.xpos[ids.peg_body] + data.xmat[ids.peg_body].reshape(3, 3)[:, 2] * scene.PEG_LENGTH
+    tip = (
+        data.xpos[ids.peg_body] + data.xmat[ids.peg_body].reshape(3, 3)[:, 2] * constants.PEG_LENGTH
+    )
     np.testing.assert_allclose(data.site_xpos[ids.tip_site], tip, atol=1e-12)
 
 
@@ -319,14 +325,14 @@ def _step(model, data, ids, q_ref=None, kp=KP, kd=KD):
     mujoco.mj_step2(model, data)
 
 
-@pytest.mark.parametrize("shape", scene.SHAPES)
+@pytest.mark.parametrize("shape", constants.SHAPES)
 def test_ft_sensor_tared_free_space_and_known_push(shape):
     size = 0.05
     model = scene.load_model(shape, size)
     ids = scene.scene_ids(model)
     scene.set_board_pose(model, 0.45, 0.0, 0.0)
     yaw, spot = 0.0, np.array([0.45 + 0.065, 0.0])  # a solid part of the board top
-    top = scene.HOLE_DEPTH
+    top = constants.HOLE_DEPTH
     q_high = scene.solve_site_pose(model, (*spot, top + 0.05), scene.tool_down_rotation(yaw))
     q_low = scene.solve_site_pose(
         model, (*spot, top + 0.003), scene.tool_down_rotation(yaw), q_init=q_high
@@ -337,7 +343,7 @@ def test_ft_sensor_tared_free_space_and_known_push(shape):
     for _ in range(100):  # 0.2 s still, then tare
         _step(model, data, ids, q_high)
     tare_f, tare_t, _ = _ft(model, data, ids)
-    assert np.linalg.norm(tare_f) == pytest.approx(scene.PEG_MASS * 9.81, rel=1e-3)
+    assert np.linalg.norm(tare_f) == pytest.approx(constants.PEG_MASS * 9.81, rel=1e-3)
     # Free space: a 1 s minimum-jerk joint move down to 3 mm above the board, then 0.2 s still.
     free = []
     n = 500
@@ -388,7 +394,7 @@ def test_bad_input_raises_one_line_value_error(shape, size):
 def _run_cli(*args, cwd):
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     return subprocess.run(
-        [sys.executable, "-m", "mjx_peg.scene", *args],
+        [sys.executable, "-m", "mjx_peg.world.scene", *args],
         capture_output=True,
         text=True,
         cwd=cwd,

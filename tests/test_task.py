@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from mjx_peg import kinematics as kin
-from mjx_peg import task
-from mjx_peg.task import HOLE_DEPTH, PEG_LENGTH, SHAPES, TaskConfig, TrialSpec, sample_trials
+from mjx_peg.world import kinematics as kin
+from mjx_peg.world import task
+from mjx_peg.world.task import HOLE_DEPTH, PEG_LENGTH, SHAPES, TaskConfig, TrialSpec, sample_trials
 
 N = 10_000
 

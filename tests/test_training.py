@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 from brax.envs.wrappers.training import VmapWrapper
 
-from mjx_peg import observation
 from mjx_peg.engines import run_trials
-from mjx_peg.env import InsertionEnv, specs_from_seeds
-from mjx_peg.policy import load_policy
-from mjx_peg.policy_net import controller_vector
-from mjx_peg.run_dir import read_table
-from mjx_peg.train_config import TrainConfig
-from mjx_peg.trainer import load_state, train
-from mjx_peg.training import deterministic_actions
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.learn.curves import read_table
+from mjx_peg.learn.env import InsertionEnv, specs_from_seeds
+from mjx_peg.learn.ppo import deterministic_actions
+from mjx_peg.learn.trainer import load_state, train
+from mjx_peg.policy import observation
+from mjx_peg.policy.export import load_policy
+from mjx_peg.policy.network import controller_vector
 
 ROOT = Path(__file__).resolve().parents[1]
 # A tiny run: 3 iterations of 16 trials of at most 0.6 s.
@@ -101,8 +101,8 @@ def test_numpy_policy_equals_jax_deterministic_action(tiny_run):
 
 def test_prior_starts_at_the_baseline():
     config = TINY
-    from mjx_peg.baseline import baseline_params
-    from mjx_peg.training import init_state, make_networks
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.skill.baseline import baseline_params
 
     state = init_state(config, make_networks(config))
     obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
@@ -151,8 +151,8 @@ def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path):
 def test_two_forced_host_devices(tmp_path):
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
     code = (
-        "import jax; from mjx_peg.train_config import TrainConfig;"
-        "from mjx_peg.trainer import train;"
+        "import jax; from mjx_peg.learn.config import TrainConfig;"
+        "from mjx_peg.learn.trainer import train;"
         "assert jax.local_device_count() == 2;"
         f"s = train(TrainConfig(trials=32, num_envs=16, time_limit_s=0.6), {str(tmp_path)!r},"
         " progress=False); print(s.trials)"

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import TrialConfig, TrialResult, as_controller_params
+from mjx_peg.engines.trial import TrialConfig, TrialResult, as_controller_params
+from mjx_peg.world.task import TrialSpec
 
 ENGINES = ("auto", "mujoco", "mjx")
 

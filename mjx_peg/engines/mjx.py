@@ -22,21 +22,10 @@ import numpy as np
 from mujoco import mjx
 from mujoco.mjx._src.support import jac_dot  # MJX's counterpart of mj_jacDot (not re-exported)
 
-from mjx_peg import scene
-from mjx_peg.controller import (
-    Basis,
-    goal_rotation,
-    make_skill,
-    skill_torque,
-    start_state,
-    wrench_in_goal_frame,
-)
-from mjx_peg.params import ControllerParams
-from mjx_peg.rotations import quat_from_yaw
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import (
+from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
+    control_config,
     destination,
     fitted_basis,
     is_settled,
@@ -45,6 +34,19 @@ from mjx_peg.trial import (
     settle_update,
     trial_reward,
 )
+from mjx_peg.skill.control_step import (
+    Basis,
+    Measurement,
+    goal_rotation,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
+from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.rotations import quat_from_yaw
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TrialSpec
 
 # outcome array -> slot field it is written from
 _OUTCOMES = {
@@ -116,7 +118,7 @@ class _Program:
         self.recycle_every = recycle_every
         basis = fitted_basis(config.dmp)
         self.basis = Basis(*(jnp.asarray(a) for a in basis))
-        self.limits = jnp.asarray(scene.TORQUE_LIMITS)
+        self.control = control_config(config, jnp)
         self.qpos_adr = jnp.asarray(ids.qpos_adr)
         self.geoms = jnp.asarray(np.concatenate([ids.peg_geoms, ids.board_geoms]))
         self.run = jax.jit(self._run)
@@ -199,24 +201,18 @@ class _Program:
         settled = is_settled(slot["settle"], cfg) & ~success & ~unstable
         ended_now = ~slot["ended"] & (success | unstable | settled | (step >= cfg.max_steps))
         live = ~(slot["ended"] | ended_now)
-        u = skill_torque(
-            skill,
-            self.basis,
-            step * cfg.timestep,
-            tcp_pos,
-            tcp_rot,
-            jac,
-            jdq,
-            d.qvel,
-            mjx.full_m(m, d),
-            d.qfrc_bias - d.qfrc_passive,
-            wrench,
-            self.limits,
-            cfg.dmp.tau,
-            cfg.dmp.alpha_s,
-            cfg.dmp.k_ref,
-            cfg.pinv_damping,
+        meas = Measurement(
+            t=step * cfg.timestep,
+            tcp_pos=tcp_pos,
+            tcp_rot=tcp_rot,
+            jac=jac,
+            jdot_qdot=jdq,
+            qvel=d.qvel,
+            mass=mjx.full_m(m, d),
+            bias=d.qfrc_bias - d.qfrc_passive,
+            wrench=wrench,
         )
+        u = skill_torque(self.control, skill, self.basis, meas)
         u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
         d_qvel = d.qvel  # this period's, for the settle test
         d = step2(m, d.replace(ctrl=u))
@@ -315,7 +311,7 @@ def run_trials(
     n = len(specs)
     inputs_all = _slot_inputs(specs, params, config)
     keys = [
-        (scene.SHAPES[int(s)], round(float(z), 9))
+        (constants.SHAPES[int(s)], round(float(z), 9))
         for s, z in zip(specs.shape_id, specs.size, strict=True)
     ]
     out_arrays = {

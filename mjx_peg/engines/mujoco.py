@@ -14,7 +14,7 @@ control period of a lane is
    gathered (site poses, joint velocities, bias forces, sensors, the sparse mass matrix, cdof,
    cdof_dot, cvel), the tcp Jacobian and its derivative are computed from them (`jacobians`,
    MuJoCo's mj_jac and mj_jacDot in NumPy), then the end checks, the wrench, the settle test
-   and `controller.skill_torque`, whose torques go to `ctrl`.
+   and `skill.control_step.skill_torque`, whose torques go to `ctrl`.
 
 A slot whose trial ends takes the next trial at once (`scene.start_trial` on a scratch model and
 MjData, the integration state and model fields copied in, mj_forward), so cost follows the
@@ -37,14 +37,11 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
-from mjx_peg import scene
-from mjx_peg.controller import Skill, make_skill, skill_torque, start_state, wrench_in_goal_frame
-from mjx_peg.params import ControllerParams
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import (
+from mjx_peg.engines.trial import (
     SettleState,
     TrialConfig,
     TrialResult,
+    control_config,
     destination,
     fitted_basis,
     is_settled,
@@ -54,6 +51,17 @@ from mjx_peg.trial import (
     trial_goals,
     trial_reward,
 )
+from mjx_peg.skill.control_step import (
+    Measurement,
+    Skill,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
+from mjx_peg.skill.params import ControllerParams
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TrialSpec
 
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
@@ -303,7 +311,7 @@ def _keep_sims(keys: set) -> None:
 
 
 def _scene_key(specs: TrialSpec, index: int) -> tuple[str, float]:
-    return scene.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
+    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
 
 
 class _Queue:
@@ -370,7 +378,7 @@ class _Lane:
         self.matched = np.zeros(b, dtype=np.int64)
         self._settle = [getattr(self, n) for n in _ROW_ARRAYS if n.startswith("settle_")]
         self._rows = [getattr(self, name) for name in _ROW_ARRAYS]
-        self.torque_limits = np.asarray(scene.TORQUE_LIMITS, dtype=np.float64)
+        self.control = control_config(config)
         self.n = 0
         self.blocks: list[tuple[int, int, np.ndarray]] = []  # per scene: rows a:b, simulations
         self.tip_pos = self.tcp_pos = np.zeros((0, 3))  # of rows [0, n), for observers
@@ -524,26 +532,20 @@ class _Lane:
             self.tip_pos, self.tcp_pos, self.measured = tip_pos, tcp_pos, m
             observer(self, np.arange(n), wrench)
         qvel = np.ascontiguousarray(m.qvel)
+        meas = Measurement(
+            t=t,
+            tcp_pos=np.ascontiguousarray(tcp_pos),
+            tcp_rot=np.ascontiguousarray(tcp_rot),
+            jac=jac,
+            jdot_qdot=(jac_dot @ qvel[..., None])[..., 0],
+            qvel=qvel,
+            mass=m.mass,
+            bias=m.bias,
+            wrench=wrench,
+        )
         skill = Skill(*(a[:n] for a in (self.goal_pos, self.goal_rot, self.y0, self.k_y,
                                          self.d_y, self.compliance)))  # fmt: skip
-        torques = skill_torque(
-            skill,
-            self.basis,
-            t,
-            np.ascontiguousarray(tcp_pos),
-            np.ascontiguousarray(tcp_rot),
-            jac,
-            (jac_dot @ qvel[..., None])[..., 0],
-            qvel,
-            m.mass,
-            m.bias,
-            wrench,
-            self.torque_limits,
-            cfg.dmp.tau,
-            cfg.dmp.alpha_s,
-            cfg.dmp.k_ref,
-            cfg.pinv_damping,
-        )
+        torques = skill_torque(self.control, skill, self.basis, meas)
         torques = np.where(np.isfinite(torques), torques, 0.0)
         for k, (a, b, ids) in enumerate(self.blocks):
             if b > a:

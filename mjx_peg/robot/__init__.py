@@ -6,6 +6,6 @@
                 the real arm's command period (torques held between commands)
     cli.py      python -m mjx_peg.robot: run a policy on the simulated arm at a chosen command rate
 
-The controller math is the one the trainer and both engines use (`mjx_peg.controller`); only the
-loop around it lives here.
+The controller math is the one the trainer and both engines use
+(`mjx_peg.skill.control_step`); only the loop around it lives here.
 """

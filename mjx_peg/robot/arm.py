@@ -1,7 +1,7 @@
 """What the skill needs from an arm each control period, and what it sends back.
 
 An `Arm` is anything with `period`, `read()`, `send(torque)` and `hold()`. A real UR5e adapter
-computes the tcp kinematics from `mjx_peg.kinematics` (DH model + tool length) and takes the
+computes the tcp kinematics from `mjx_peg.world.kinematics` (DH model + tool length) and takes the
 joint-space inertia H and bias h from the robot's model; the simulated arm (`sim_arm.py`) takes
 all of it from MuJoCo.
 """

@@ -19,26 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import scene
-from mjx_peg.policy import PolicyError, load_policy
+from mjx_peg import cli
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.policy.export import PolicyError, load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.task import TaskConfig, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.world import constants
+from mjx_peg.world.task import TaskConfig, sample_trials
 
 PROG = "python -m mjx_peg.robot"
-PHYSICS_HZ = 1.0 / scene.TIMESTEP
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):
-        self.exit(2, f"{PROG}: error: {message}\n")
+PHYSICS_HZ = 1.0 / constants.TIMESTEP
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="baseline", help="RUN_DIR holding policy.npz, or baseline")
-    p.add_argument("--shape", choices=scene.SHAPES, default="circle")
+    p.add_argument("--shape", choices=constants.SHAPES, default="circle")
     p.add_argument("--size", type=float, default=50.0, help="size S in mm (default 50)")
     p.add_argument("--linear-mm", type=float, default=2.0, help="± linear error range (mm)")
     p.add_argument("--angular-deg", type=float, default=3.0, help="± angular error range (deg)")
@@ -96,9 +92,8 @@ def main(argv=None) -> int:
         policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
         holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
         vectors = [controller_vector(policy, hole) for hole in holes]
-    except (ValueError, PolicyError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+    except (*cli.USER_ERRORS, PolicyError) as exc:
+        return cli.fail(PROG, exc)
     config = TrialConfig(time_limit_s=args.time_limit)
     args.out.mkdir(parents=True, exist_ok=True)
     rows, start = [], time.perf_counter()

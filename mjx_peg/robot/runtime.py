@@ -24,21 +24,29 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mjx_peg import kinematics, observation
-from mjx_peg.baseline import baseline_params
-from mjx_peg.controller import make_skill, skill_torque, start_state, wrench_in_goal_frame
-from mjx_peg.params import ControllerParams
-from mjx_peg.policy import Policy, load_policy
-from mjx_peg.robot.arm import Arm, ArmState
-from mjx_peg.trial import (
+from mjx_peg.engines.trial import (
     TrialConfig,
     as_controller_params,
+    control_config,
     fitted_basis,
     is_settled,
     settle_start,
     settle_update,
     trial_goals,
 )
+from mjx_peg.policy import observation
+from mjx_peg.policy.export import Policy, load_policy
+from mjx_peg.robot.arm import Arm, ArmState
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.control_step import (
+    Measurement,
+    make_skill,
+    skill_torque,
+    start_state,
+    wrench_in_goal_frame,
+)
+from mjx_peg.skill.params import ControllerParams
+from mjx_peg.world import constants
 
 
 class SafetyStop(RuntimeError):
@@ -56,10 +64,8 @@ class HoleEstimate:
     size: float
 
     def __post_init__(self):
-        if self.shape not in observation.SHAPE_NAMES:
-            raise ValueError(
-                f"hole shape must be one of {observation.SHAPE_NAMES}, got {self.shape!r}"
-            )
+        if self.shape not in constants.SHAPES:
+            raise ValueError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
         for name in ("x", "y", "yaw", "size"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(
@@ -72,13 +78,13 @@ class HoleEstimate:
     def of_trial(cls, specs, index: int) -> HoleEstimate:
         """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw, shape, size)."""
         x, y = (float(v) for v in specs.hole_est_pos[index])
-        shape = observation.SHAPE_NAMES[int(specs.shape_id[index])]
+        shape = constants.SHAPES[int(specs.shape_id[index])]
         return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]))
 
     def observation(self) -> np.ndarray:
         """(1, 8) policy observation of this estimate."""
         return observation.observe(
-            np.array([observation.SHAPE_NAMES.index(self.shape)]),
+            np.array([constants.SHAPES.index(self.shape)]),
             np.array([self.size]),
             np.array([[self.x, self.y]]),
             np.array([self.yaw]),
@@ -107,7 +113,7 @@ class SkillRuntime:
         self.goal_pos, self.goal_rot = trial_goals(
             np.array([[hole.x, hole.y]]), np.array([hole.yaw]), cfg
         )
-        self.limits = np.asarray(kinematics.TORQUE_LIMITS)
+        self.control = control_config(config)
         self.skill = None
         self.tare = np.zeros((1, 6))
         self.t0 = self.last_t = 0.0
@@ -150,20 +156,27 @@ class SkillRuntime:
         """`torque` for a reading that has passed `check`."""
         if self.skill is None:
             raise RuntimeError("SkillRuntime.torque before start")
-        cfg, b = self.config, lambda a: a[None]
+        b = lambda a: a[None]  # noqa: E731  one trial as a batch of one
         wrench = wrench_in_goal_frame(
             b(state.force), b(state.torque), self.tare, b(state.ft_rot),
             b(state.ft_pos - state.tcp_pos), self.goal_rot,
         )  # fmt: skip
-        u = skill_torque(
-            self.skill, self.basis, np.array([self.elapsed(state)]), b(state.tcp_pos),
-            b(state.tcp_rot), b(state.jac), (b(state.jac_dot) @ state.qd[None, :, None])[..., 0],
-            b(state.qd), b(state.mass), b(state.bias), wrench, self.limits, cfg.dmp.tau,
-            cfg.dmp.alpha_s, cfg.dmp.k_ref, cfg.pinv_damping,
-        )[0]  # fmt: skip
+        meas = Measurement(
+            t=np.array([self.elapsed(state)]),
+            tcp_pos=b(state.tcp_pos),
+            tcp_rot=b(state.tcp_rot),
+            jac=b(state.jac),
+            jdot_qdot=(b(state.jac_dot) @ state.qd[None, :, None])[..., 0],
+            qvel=b(state.qd),
+            mass=b(state.mass),
+            bias=b(state.bias),
+            wrench=wrench,
+        )
+        u = skill_torque(self.control, self.skill, self.basis, meas)[0]
         if not np.all(np.isfinite(u)):
             raise SafetyStop("the controller returned a non-finite torque")
         self.wrench = wrench[0]
+        cfg = self.config
         if cfg.end_settled:  # the engines' settle test, on what the arm measures
             step = np.array([round(self.elapsed(state) / cfg.timestep)])
             self.settle = settle_update(self.settle, step, b(state.qd), b(state.tcp_pos), wrench,

@@ -14,10 +14,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_peg import scene
+from mjx_peg.engines.trial import is_success
 from mjx_peg.robot.arm import ArmState
-from mjx_peg.task import TrialSpec
-from mjx_peg.trial import is_success
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TrialSpec
 
 
 class SimArm:
@@ -32,7 +32,7 @@ class SimArm:
             raise ValueError(f"trial index {index} is outside the {len(specs)} trials")
         s = specs.take([index])
         self.board_pos, self.size = s.board_pos[0], float(s.size[0])
-        self.model = m = scene.load_model(scene.SHAPES[int(s.shape_id[0])], self.size)
+        self.model = m = scene.load_model(constants.SHAPES[int(s.shape_id[0])], self.size)
         self.data = d = mujoco.MjData(m)
         self.ids = ids = scene.scene_ids(m)
         scene.start_trial(

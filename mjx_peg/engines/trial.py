@@ -17,11 +17,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjx_peg import dmp
-from mjx_peg.controller import Basis, goal_rotation
-from mjx_peg.params import ControllerParams, controller_from_vector
-
-SUCCESS_REWARD = 38000.0  # the paper's outcome reward
+from mjx_peg.skill import dmp
+from mjx_peg.skill.control_step import Basis, ControlConfig, goal_rotation
+from mjx_peg.skill.params import ControllerParams, controller_from_vector
+from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,6 +141,17 @@ class TrialResult:
             f"median time {median:.2f} s, {int(self.unstable.sum())} unstable, "
             f"{int(self.settled.sum())} settled, mean reward {float(self.reward.mean()):.0f}"
         )
+
+
+def control_config(config: TrialConfig, xp=np) -> ControlConfig:
+    """The control step's constants for `config`, torque limits as an array of namespace `xp`."""
+    return ControlConfig(
+        tau=config.dmp.tau,
+        alpha_s=config.dmp.alpha_s,
+        k_ref=config.dmp.k_ref,
+        pinv_damping=config.pinv_damping,
+        torque_limits=xp.asarray(TORQUE_LIMITS),
+    )
 
 
 @functools.lru_cache(maxsize=8)

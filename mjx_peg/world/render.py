@@ -1,7 +1,6 @@
 """Headless rendering helpers: an RGB frame from a model/data and a camera, and a PNG writer.
 
-Without a display, MUJOCO_GL defaults to `egl` here; it is read once, when mujoco is first
-imported, so set it yourself before any `import mujoco` to choose another backend (osmesa).
+The OpenGL back-end is chosen by `gl.choose_backend()` (headless `egl` without a display).
 """
 
 from __future__ import annotations
@@ -9,10 +8,9 @@ from __future__ import annotations
 import os
 import pathlib
 
-if "MUJOCO_GL" not in os.environ and not (
-    os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-):
-    os.environ["MUJOCO_GL"] = "egl"
+from mjx_peg.world import gl
+
+gl.choose_backend()
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402

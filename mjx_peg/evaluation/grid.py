@@ -32,13 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import evaluate_stats as es
-from mjx_peg.baseline import baseline_params
+from mjx_peg import cli
 from mjx_peg.engines import ENGINES, resolve_engine, run_trials
-from mjx_peg.policy import POLICY_FILE, load_policy
-from mjx_peg.task import SHAPES, TaskConfig, TrialSpec, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.evaluation import stats as es
+from mjx_peg.policy.export import POLICY_FILE, load_policy
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
+PROG = "eval.py"
 SCHEMA = "mjx-peg-eval"
 SCHEMA_VERSION = 1
 GRIDS = ("paper", "paper-small", "custom")
@@ -418,17 +420,17 @@ def write_outputs(
 ) -> es.GridTable:
     """grid.csv, the two heatmaps, summary.md and (with a paper condition) the paper
     comparison plot of a finished evaluation."""
-    from mjx_peg import evaluate_plots
+    from mjx_peg.evaluation import plots
 
     out = Path(out_dir)
     grid = grid_table(out, config)
     _write_atomic(out / GRID_FILE, lambda f: f.write(grid.csv_text().encode()))
     what = f"{', '.join(config.shapes)}, S = {config.size_mm:g} mm, N = {config.trials}"
-    evaluate_plots.success_heatmap(grid, out / SUCCESS_PNG, f"Success rate (%): {what}")
-    evaluate_plots.time_heatmap(grid, out / TIME_PNG, f"Mean time to complete (s): {what}")
+    plots.success_heatmap(grid, out / SUCCESS_PNG, f"Success rate (%): {what}")
+    plots.time_heatmap(grid, out / TIME_PNG, f"Mean time to complete (s): {what}")
     if paper_name is not None:
         paper = es.PAPER[paper_name]
-        evaluate_plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
+        plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
     header = _header(out, config, grid, policy_label)
     text = es.summary_markdown(grid, header, paper_name, other, other_name, alternative)
     _write_atomic(out / SUMMARY_FILE, lambda f: f.write(text.encode()))
@@ -460,8 +462,8 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="eval.py",
+    p = cli.Parser(
+        prog=PROG,
         description="Evaluate a policy over a grid of error ranges (paper section 6): grid.csv, "
         "heatmaps and summary.md in --out. Rerun the same command to resume.",
     )
@@ -570,18 +572,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif paper_name == "none":
             paper_name = None
         prepare_out_dir(out, config, None if args.policy == "baseline" else args.policy)
-    except ValueError as exc:
-        print(f"eval.py: error: {exc}", file=sys.stderr)
-        return 2
+    except cli.USER_ERRORS as exc:
+        return cli.fail(PROG, exc)
     n_ranges = len(config.ranges)
     start = time.perf_counter()
     try:
         ran = run_evaluation(
             config, out, controller, options, args.chunk_trials, show_progress=not args.no_progress
         )
-    except ValueError as exc:
-        print(f"eval.py: error: {exc}", file=sys.stderr)
-        return 2
+    except cli.USER_ERRORS as exc:
+        return cli.fail(PROG, exc)
     except KeyboardInterrupt:
         done = sum(_range_path(out, i).is_file() for i in range(n_ranges))
         print(
@@ -589,7 +589,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "same command to resume",
             file=sys.stderr,
         )
-        return 130
+        return cli.EXIT_INTERRUPTED
     label = policy_label if args.policy == "baseline" else f"{args.policy} ({policy_label[:19]})"
     write_outputs(out, config, label, paper_name, other, args.compare or "", args.alternative)
     wall = time.perf_counter() - start

@@ -30,15 +30,15 @@ from brax.training.acme import running_statistics, specs
 from brax.training.agents.ppo import losses as ppo_losses
 from brax.training.agents.ppo import networks as ppo_networks
 
-from mjx_peg.baseline import baseline_params
-from mjx_peg.env import METRICS, OBSERVATION_SIZE, InsertionEnv
-from mjx_peg.params import (
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.learn.env import METRICS, OBSERVATION_SIZE, InsertionEnv
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.params import (
     DEFAULT_RANGES,
     N_PARAMS,
     action_from_controller,
     controller_from_vector,
 )
-from mjx_peg.train_config import TrainConfig
 
 AXIS = "i"
 # Floor of the observation std in Brax's running statistics. Features are already scaled to

@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from mjx_peg.evaluate_stats import (  # noqa: E402
+from mjx_peg.evaluation.stats import (  # noqa: E402
     QUARTERS,
     GridTable,
     PaperCondition,

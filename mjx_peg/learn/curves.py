@@ -2,14 +2,25 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
 
-from mjx_peg.run_dir import read_table
-from mjx_peg.trial import SUCCESS_REWARD
+from mjx_peg.world.constants import SUCCESS_REWARD
 
 RUNNING_MEAN = 100  # trials, as in the paper's figure
+
+
+def read_table(path) -> dict[str, list[float]]:
+    """A CSV written by RunDir as {column: [float, ...]} (empty cells -> nan)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header = rows[0]
+    return {
+        name: [float(r[i]) if r[i] != "" else float("nan") for r in rows[1:]]
+        for i, name in enumerate(header)
+    }
 
 
 def running_mean(x: np.ndarray, window: int) -> np.ndarray:
@@ -18,15 +29,6 @@ def running_mean(x: np.ndarray, window: int) -> np.ndarray:
     i = np.arange(1, len(x) + 1)
     lo = np.maximum(i - window, 0)
     return (c[i] - c[lo]) / (i - lo)
-
-
-def trials_to_fraction(returns: np.ndarray, fraction: float = 0.9, window: int = RUNNING_MEAN):
-    """First trial count at which the running mean reaches `fraction` of its final value."""
-    if len(returns) < window:
-        return None
-    mean = running_mean(returns, window)[window - 1 :]  # full windows only
-    hit = np.flatnonzero(mean >= fraction * mean[-1])
-    return int(hit[0]) + window if hit.size else None
 
 
 def plot_training_curve(trials_csv, out_png, title: str = "") -> Path:

@@ -55,48 +55,38 @@ import copy
 import dataclasses
 import functools
 import math
-import os
 import pathlib
 import sys
 import xml.etree.ElementTree as ET
 
-if "MUJOCO_GL" not in os.environ and not (
-    os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-):
-    os.environ["MUJOCO_GL"] = "egl"  # headless default; read once when mujoco is imported
+from mjx_peg import cli
+from mjx_peg.world import gl
+
+gl.choose_backend()
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from mjx_peg import kinematics  # noqa: E402
-
-SHAPES = ("circle", "square", "triangle")
-HOLE_DEPTH = 0.08  # m, board thickness (the hole runs through it)
-PEG_LENGTH = 0.15  # m: 80 mm in the hole leaves the flange 70 mm above the board top
-HOLE_SCALE = {"circle": 1.03, "square": 1.08, "triangle": 1.08}
-CIRCLE_SIDES = 16  # sides of the round peg's prism (circumradius D/2)
-HOLE_SIDES = {"circle": 16, "square": 4, "triangle": 3}  # boxes (= polygon edges) of each hole
-JOINT_NAMES = (
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
+from mjx_peg.world.constants import (  # noqa: E402
+    ACTUATOR_NAMES,
+    CIRCLE_SIDES,
+    HOLE_DEPTH,
+    HOLE_SCALE,
+    HOLE_SIDES,
+    HOME_Q,
+    JOINT_NAMES,
+    PEG_LENGTH,
+    PEG_MASS,
+    SHAPES,
+    TIMESTEP,
 )
-ACTUATOR_NAMES = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
-TORQUE_LIMITS = kinematics.TORQUE_LIMITS  # N m
-PEG_MASS = 0.3  # kg
+
 BOARD_MIN_HALF_WIDTH = 0.1  # m: inradius of the board's outer outline (at least)
 BOARD_MIN_WALL = 0.05  # m: wall thickness around the hole (at least)
 DEFAULT_FRICTION = 0.5  # peg and board sliding friction until set_friction is called
 TABLE_FRICTION = 0.3
-TIMESTEP = 0.002  # s
 WRIST3_BODY = "wrist_3_link"
-UR5E_XML = pathlib.Path(__file__).resolve().parent.parent / "scenes" / "ur5e.xml"
-
-# Elbow up, tool down, facing +x (the same configuration as kinematics.HOME_Q).
-_HOME_Q = (math.pi, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
+UR5E_XML = pathlib.Path(__file__).resolve().parents[2] / "scenes" / "ur5e.xml"
 
 
 def _fmt(x: float) -> str:
@@ -471,7 +461,7 @@ def solve_site_pose(
     pos,
     rot,
     site: str = "tcp",
-    q_init=_HOME_Q,
+    q_init=HOME_Q,
     iterations: int = 100,
     damping: float = 1e-4,
 ) -> np.ndarray:
@@ -509,17 +499,12 @@ def solve_site_pose(
 
 # --- CLI ----------------------------------------------------------------------------------------
 
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with errors on one stderr line (no usage block) and exit status 2."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message}\n")
+PROG = "mjx-peg-scene"
 
 
 def _parse(argv) -> argparse.Namespace:
-    parser = _Parser(
-        prog="python -m mjx_peg.scene",
+    parser = cli.Parser(
+        prog=PROG,
         description="Write the scene MJCF for one (shape, size) and a rendered PNG of it.",
     )
     parser.add_argument("--shape", required=True, help=f"one of {', '.join(SHAPES)}")
@@ -558,7 +543,7 @@ def demo_pose(
 
 def main(argv=None) -> int:
     args = _parse(argv)
-    from mjx_peg import render
+    from mjx_peg.world import render
 
     size = args.size_mm / 1000.0
     out = pathlib.Path(args.out)
@@ -574,9 +559,8 @@ def main(argv=None) -> int:
             )
         data = demo_pose(model)
         render.write_png(out / f"{stem}.png", model, data, args.camera, args.width, args.height)
-    except (OSError, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    except cli.USER_ERRORS as err:
+        return cli.fail(PROG, err)
     print(out / f"{stem}.xml")
     print(out / f"{stem}.png")
     return 0

@@ -17,14 +17,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from mjx_peg import kinematics, scene
+from mjx_peg.world import kinematics
+from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH, PEG_LENGTH, SHAPES
 
-# task.py imports scene.py, never the reverse; the scene owns the geometry constants.
-SHAPES: tuple[str, ...] = tuple(scene.SHAPES)
-HOLE_DEPTH: float = float(scene.HOLE_DEPTH)  # m, board top above the table
-PEG_LENGTH: float = float(scene.PEG_LENGTH)  # m, site `tcp` along the flange z
-
-GOAL_HEIGHT = 0.0  # m: the goal configuration puts the nominal tip at the table top
 MAX_REJECTION_FACTOR = 1000  # sample_trials gives up after drawing this many candidates per trial
 
 

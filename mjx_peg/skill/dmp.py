@@ -34,7 +34,7 @@ import dataclasses
 import importlib
 import math
 
-from mjx_peg.rotations import namespace_of
+from mjx_peg.skill.rotations import namespace_of
 
 WIDTH_PER_GAP = 0.3  # basis width sigma_i over the distance between neighbouring centres
 

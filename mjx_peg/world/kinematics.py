@@ -16,15 +16,14 @@ import functools
 
 import numpy as np
 
-TORQUE_LIMITS = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)  # N m, the UR5e's joint torque limits
+from mjx_peg.world import constants
+
 D1, A2, A3, D4, D5, D6 = 0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996  # m
 DH_D = np.array([D1, 0.0, 0.0, D4, D5, D6])
 DH_A = np.array([0.0, A2, A3, 0.0, 0.0, 0.0])
 DH_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 
-# Elbow up, wrist down, facing +x: the flange at (0.49, 0.13, 0.49) m, tool z along world -z,
-# tool x along world -y. The reference configuration IK branches are chosen by.
-HOME_Q = np.array([np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0])
+HOME_Q = np.array(constants.HOME_Q)  # the configuration IK branches are chosen by
 
 IK_TOL_POS = 1e-6  # m: an IK branch is valid when fk(q) is this close to the target...
 IK_TOL_ROT = 1e-6  # rad: ...in position and orientation

@@ -33,11 +33,11 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):
     from brax.envs.base import Env, State
 
-from mjx_peg import observation, policy_net
 from mjx_peg.engines import resolve_engine, run_trials
-from mjx_peg.params import N_PARAMS
-from mjx_peg.task import TaskConfig, TrialSpec, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.policy import network, observation
+from mjx_peg.skill.params import N_PARAMS
+from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 METRICS = ("return", "success", "time_s", "unstable")
 # "state": what the policy (and the robot) sees; "privileged_state": the critic's input, the same
@@ -126,7 +126,7 @@ class InsertionEnv(Env):
         )
 
     def step(self, state: State, action: jax.Array) -> State:
-        vector = policy_net.controller_vector(action)
+        vector = network.controller_vector(action)
         scalar = jax.ShapeDtypeStruct((), jnp.float32)
         reward, success, time_s, unstable = jax.pure_callback(
             self._run_host,

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import orbax.checkpoint as ocp
 
-from mjx_peg.policy import MANIFEST_FILE, POLICY_FILE
-from mjx_peg.train_config import TrainConfig
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.policy.export import MANIFEST_FILE, POLICY_FILE
 
 METRICS_COLUMNS = (
     "iteration",
@@ -136,14 +136,3 @@ class RunDir:
             csv.writer(f).writerows(trial_rows)
         with open(self.metrics_path, "a", newline="") as f:
             csv.writer(f).writerow(metrics_row)
-
-
-def read_table(path) -> dict[str, list[float]]:
-    """A CSV written by RunDir as {column: [float, ...]} (empty cells -> nan)."""
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    header = rows[0]
-    return {
-        name: [float(r[i]) if r[i] != "" else float("nan") for r in rows[1:]]
-        for i, name in enumerate(header)
-    }

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjx_peg.params import ControllerParams, vector_from_controller
+from mjx_peg.skill.params import ControllerParams, vector_from_controller
 
 K_T = 300.0
 K_THETA = 300.0
@@ -41,52 +41,3 @@ def baseline_controller() -> ControllerParams:
 def baseline_params() -> np.ndarray:
     """(38,) physical parameter vector [k_t, k_theta, C row-major] of the baseline."""
     return np.asarray(vector_from_controller(baseline_controller()), dtype=np.float64)
-
-
-def main(argv=None) -> int:
-    """`python -m mjx_peg.baseline`: success and time of the baseline per shape at given errors."""
-    import argparse
-
-    from mjx_peg import scene
-    from mjx_peg.engines import ENGINES, run_trials
-    from mjx_peg.task import TaskConfig, sample_trials
-    from mjx_peg.trial import TrialConfig
-
-    p = argparse.ArgumentParser(prog="python -m mjx_peg.baseline", description=main.__doc__)
-    p.add_argument("--shapes", default="circle,square,triangle")
-    p.add_argument("--size", type=float, default=50.0, help="characteristic size (mm)")
-    p.add_argument("--linear-mm", type=float, default=3.0)
-    p.add_argument("--angular-deg", type=float, default=4.0)
-    p.add_argument("--trials", type=int, default=100)
-    p.add_argument("--time-limit", type=float, default=60.0)
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--engine", default="auto", choices=ENGINES)
-    args = p.parse_args(argv)
-    shapes = args.shapes.split(",")
-    for shape in shapes:
-        if shape not in scene.SHAPES:
-            p.error(f"unknown shape {shape!r}: choose from {', '.join(scene.SHAPES)}")
-    if args.trials <= 0:
-        p.error("--trials must be positive")
-    try:
-        config = TrialConfig(time_limit_s=args.time_limit)
-        for shape in shapes:
-            task = TaskConfig(
-                shapes=(shape,),
-                sizes=(args.size / 1000.0,),
-                linear_error=args.linear_mm / 1000.0,
-                angular_error=np.deg2rad(args.angular_deg),
-            )
-            specs = sample_trials(task, args.seed, args.trials)
-            result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
-            print(
-                f"{shape} {args.size:g} mm ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
-                f"{result.summary()}"
-            )
-    except ValueError as exc:
-        p.error(str(exc))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -10,7 +10,7 @@ input rather than a division by a near-zero running std:
           x 0.18-0.65 m, y +-0.56 m: inputs within about +-2)
     2-3   cos(n yaw), sin(n yaw)   yaw of the estimated hole, n = the shape's rotational symmetry
                                    (square 4, triangle 3; circle 0, i.e. the constant (1, 0))
-    4-6   one-hot shape            circle, square, triangle (task.SHAPES order)
+    4-6   one-hot shape            circle, square, triangle (constants.SHAPES order)
     7     (S - 0.05 m) / 0.01 m    characteristic size: 25 mm -> -2.5, 50 mm -> 0, 60 mm -> 1
 
 Encoding the yaw at the shape's symmetry makes poses that are physically the same (a square
@@ -22,10 +22,9 @@ imports neither numpy nor jax at module level.
 
 from __future__ import annotations
 
-from mjx_peg.rotations import namespace_of
+from mjx_peg.skill.rotations import namespace_of
+from mjx_peg.world.constants import SHAPES, SYMMETRY
 
-SHAPE_NAMES = ("circle", "square", "triangle")  # = task.SHAPES; index = TrialSpec.shape_id
-SYMMETRY = (0, 4, 3)  # rotational symmetry order per shape (0: yaw does not matter)
 WORKSPACE_CENTRE = (0.4, 0.0)  # m
 POSITION_SCALE = 0.3  # m
 SIZE_CENTRE = 0.05  # m, the training size
@@ -49,7 +48,7 @@ def observe(shape_id, size, hole_est_pos, hole_est_yaw):
     xp = namespace_of(size, hole_est_pos, hole_est_yaw)
     dtype = hole_est_pos.dtype
     shape_id = xp.asarray(shape_id)
-    one_hot = xp.stack([shape_id == i for i in range(len(SHAPE_NAMES))], axis=-1)
+    one_hot = xp.stack([shape_id == i for i in range(len(SHAPES))], axis=-1)
     order = xp.asarray(SYMMETRY, dtype=dtype)[shape_id]
     angle = order * xp.asarray(hole_est_yaw, dtype=dtype)
     centre = xp.asarray(WORKSPACE_CENTRE, dtype=dtype)

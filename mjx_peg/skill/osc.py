@@ -14,7 +14,7 @@ module imports neither numpy nor jax.
 
 from __future__ import annotations
 
-from mjx_peg.rotations import namespace_of, rotvec_from_matrix
+from mjx_peg.skill.rotations import namespace_of, rotvec_from_matrix
 
 
 def _matvec(mat, vec):

@@ -14,25 +14,16 @@ import argparse
 import os
 import sys
 
+from mjx_peg import cli
 from mjx_peg.engines import ENGINES
 
 PROG = "train.py"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage dump
-        raise SystemExit(_fail(message))
-
-
-def _fail(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return 2
-
-
 def parser() -> argparse.ArgumentParser:
-    from mjx_peg.train_config import PRESETS
+    from mjx_peg.learn.config import PRESETS
 
-    p = _Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p = cli.Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), help="default: quick")
     p.add_argument("--out", help="run directory (default: runs/PRESET)")
     p.add_argument("--engine", choices=ENGINES, help="physics engine (preset: mujoco)")
@@ -56,8 +47,8 @@ def parser() -> argparse.ArgumentParser:
 
 def resolve_config(args):
     """The preset with the command line's overrides applied (ValueError on bad values)."""
-    from mjx_peg.policy import load_policy
-    from mjx_peg.train_config import PRESETS
+    from mjx_peg.learn.config import PRESETS
+    from mjx_peg.policy.export import load_policy
 
     overrides = {
         "engine": args.engine,
@@ -102,8 +93,8 @@ def main(argv=None) -> int:
         config = resolve_config(args)
         if args.distributed:
             join_distributed()
-        import mjx_peg.env  # noqa: F401  first: it imports brax with the Warp message muted
-        from mjx_peg.trainer import train
+        import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted
+        from mjx_peg.learn.trainer import train
 
         options = {} if args.workers is None else {"workers": args.workers}
         summary = train(
@@ -115,9 +106,9 @@ def main(argv=None) -> int:
             engine_options=options,
         )
     except ValueError as e:
-        return _fail(str(e))
+        return cli.fail(PROG, e)
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; rerun the same command to resume", file=sys.stderr)
-        return 130
+        return cli.EXIT_INTERRUPTED
     print(summary.line())
     return 0

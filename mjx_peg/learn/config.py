@@ -18,8 +18,8 @@ import json
 import math
 
 from mjx_peg.engines import ENGINES
-from mjx_peg.task import SHAPES, TaskConfig
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
 

@@ -1,4 +1,4 @@
-"""Watch one insertion: `python -m mjx_peg.demo --shape square --size 50 --linear-mm 3 ...`.
+"""Watch one insertion: `mjx-peg-demo --shape square --size 50 --linear-mm 3 ...`.
 
 Runs one trial with the hand-tuned baseline or a learned policy (`--policy RUN_DIR`) on the
 C MuJoCo engine and writes, into --out: `trial.png` (tip height, lateral error of the tip from the
@@ -8,23 +8,24 @@ hole axis and the contact wrench over time) and `frames.png` (a strip of rendere
 spec, policy and time limit, so a failure found in a grid can be watched. It checks that the
 replay ends as the evaluation recorded (exit 1 if not).
 
-    python -m mjx_peg.demo --replay runs/eval/nominal --range 300 --trial failure
+    python -m mjx_peg.evaluation.demo --replay runs/eval/nominal --range 300 --trial failure
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import pathlib
 import sys
 
 import numpy as np
 
-from mjx_peg import scene
-from mjx_peg.task import TaskConfig, TrialSpec, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg import cli
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.world import constants, scene
+from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 # The trial options (argparse dest -> default); --replay takes them from the evaluation.
+PROG = "mjx-peg-demo"
 _DEFAULTS = {
     "shape": "square",
     "size": 50.0,
@@ -37,9 +38,9 @@ _DEFAULTS = {
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m mjx_peg.demo", description=__doc__.splitlines()[0])
+    p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
-    p.add_argument("--shape", choices=scene.SHAPES, help=f"default {d['shape']}")
+    p.add_argument("--shape", choices=constants.SHAPES, help=f"default {d['shape']}")
     p.add_argument(
         "--size", type=float, help=f"characteristic size S in mm (default {d['size']:g})"
     )
@@ -75,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _controller(policy: str):
-    from mjx_peg.evaluate import load_controller
+    from mjx_peg.evaluation.grid import load_controller
 
     return load_controller(policy)
 
@@ -106,16 +107,16 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
 def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:
     """Like `trial_from_args` for trial --trial of range --range of the evaluation --replay,
     plus what the evaluation recorded for that trial."""
-    from mjx_peg import evaluate
+    from mjx_peg.evaluation import grid as evaluation
 
     given = ["--" + k.replace("_", "-") for k in _DEFAULTS if getattr(args, k) is not None]
     if given:
         raise ValueError(f"--replay takes the trial from the evaluation; drop {', '.join(given)}")
-    config, policy_dir = evaluate.read_eval_dir(args.replay)
+    config, policy_dir = evaluation.read_eval_dir(args.replay)
     n_ranges = len(config.ranges)
     if args.range is None or not 0 <= args.range < n_ranges:
         raise ValueError(f"--replay needs --range between 0 and {n_ranges - 1}, got {args.range}")
-    recorded = evaluate.load_range(pathlib.Path(args.replay), config, args.range)
+    recorded = evaluation.load_range(pathlib.Path(args.replay), config, args.range)
     if recorded is None:
         raise ValueError(f"range {args.range} of {args.replay} has not finished")
     if args.trial in ("failure", "success"):
@@ -141,10 +142,10 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
         raise ValueError(
             f"{policy}/policy.npz has changed since the evaluation ({config.policy[:19]})"
         )
-    specs = evaluate.range_specs(config, args.range)
+    specs = evaluation.range_specs(config, args.range)
     params = controller(specs)[index : index + 1]  # the whole range, as the evaluation computed it
     linear_mm, angular_deg = config.ranges[args.range]
-    shape = scene.SHAPES[int(specs.shape_id[index])]
+    shape = constants.SHAPES[int(specs.shape_id[index])]
     text = (
         f"{args.replay} range {args.range} (±{linear_mm:g} mm / ±{angular_deg:g} deg) trial "
         f"{index}: {shape} {config.size_mm:g} mm, policy {policy}"
@@ -157,7 +158,7 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
 def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: int) -> dict:
     """Run one trial on the C MuJoCo engine, recording the tip, the wrench and snapshots."""
     from mjx_peg.engines import mujoco as engine
-    from mjx_peg.trial import as_controller_params
+    from mjx_peg.engines.trial import as_controller_params
 
     params = as_controller_params(vector, 1)
     every = max(1, int(round(0.25 / config.timestep)))
@@ -193,7 +194,7 @@ def _plot(run: dict, path: pathlib.Path) -> None:
     hole = run["specs"].board_pos[0]
     fig, ax = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
     ax[0].plot(t, tip[:, 2] * 1000)
-    ax[0].axhline(scene.HOLE_DEPTH * 1000, color="gray", ls="--", label="board top")
+    ax[0].axhline(constants.HOLE_DEPTH * 1000, color="gray", ls="--", label="board top")
     ax[0].axhline(20, color="green", ls=":", label="success (20 mm)")
     ax[0].set_ylabel("tip height (mm)")
     ax[0].legend(loc="upper right")
@@ -215,17 +216,17 @@ def _frames(run: dict, frames: int, path: pathlib.Path) -> None:
     """A strip of close-up frames around the hole at evenly spaced moments of the trial."""
     import mujoco
 
-    from mjx_peg.render import render_rgb, save_png
+    from mjx_peg.world.render import render_rgb, save_png
 
     specs, snaps = run["specs"], run["snapshots"]
     if not snaps:
         return
-    model = scene.load_model(scene.SHAPES[int(specs.shape_id[0])], float(specs.size[0]))
+    model = scene.load_model(constants.SHAPES[int(specs.shape_id[0])], float(specs.size[0]))
     scene.set_board_pose(model, *specs.board_pos[0], specs.board_yaw[0])
     scene.set_grasp(model, *specs.grasp_error[0])
     data = mujoco.MjData(model)
     camera = mujoco.MjvCamera()
-    camera.lookat[:] = (*specs.board_pos[0], scene.HOLE_DEPTH + 0.03)
+    camera.lookat[:] = (*specs.board_pos[0], constants.HOLE_DEPTH + 0.03)
     camera.distance, camera.elevation, camera.azimuth = 0.45, -25.0, 200.0
     picks = np.linspace(0, len(snaps) - 1, min(frames, len(snaps))).round().astype(int)
     tiles = []
@@ -253,10 +254,8 @@ def main(argv=None) -> int:
             recorded = None
         else:
             specs, vector, config, label, recorded = trial_from_eval(args)
-    except ValueError as exc:
-        print(f"python -m mjx_peg.demo: error: {exc}", file=sys.stderr)
-        return 2
-    os.environ.setdefault("MUJOCO_GL", "egl")
+    except cli.USER_ERRORS as exc:
+        return cli.fail(PROG, exc)
     args.out.mkdir(parents=True, exist_ok=True)
     run = run_demo(specs, vector, config, args.frames)
     _plot(run, args.out / "trial.png")

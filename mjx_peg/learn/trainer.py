@@ -1,6 +1,6 @@
 """`train(config, out)`: run (or resume) a training job in a run directory and export it.
 
-The host loop around `training.make_iteration`: restore the last Orbax checkpoint if the run was
+The host loop around `ppo.make_iteration`: restore the last Orbax checkpoint if the run was
 interrupted, step iterations with a progress bar (trials/s, ETA), append metrics.csv and
 trials.csv, checkpoint every `checkpoint_every_s` seconds and at the end, then export
 `policy.npz` + `manifest.json` and draw `training_curve.png`.
@@ -18,12 +18,12 @@ import jax.experimental.multihost_utils
 import numpy as np
 import orbax.checkpoint as ocp
 
-from mjx_peg import training
-from mjx_peg.curves import plot_training_curve, running_mean
-from mjx_peg.env import InsertionEnv
-from mjx_peg.policy import save_policy
-from mjx_peg.run_dir import RunDir
-from mjx_peg.train_config import TrainConfig
+from mjx_peg.learn import ppo
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.learn.curves import plot_training_curve, running_mean
+from mjx_peg.learn.env import InsertionEnv
+from mjx_peg.learn.run_dir import RunDir
+from mjx_peg.policy.export import save_policy
 
 
 @dataclass(frozen=True)
@@ -56,12 +56,12 @@ def _flat(state) -> dict[str, np.ndarray]:
     return {f"{i:03d}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(state))}
 
 
-def _save(manager: ocp.CheckpointManager, state: training.TrainingState) -> None:
+def _save(manager: ocp.CheckpointManager, state: ppo.TrainingState) -> None:
     manager.save(int(state.iteration), args=ocp.args.StandardSave(_flat(state)))
     manager.wait_until_finished()
 
 
-def _restore(manager: ocp.CheckpointManager, template: training.TrainingState, step=None):
+def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=None):
     step = manager.latest_step() if step is None else step
     abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(template))
     flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
@@ -69,7 +69,7 @@ def _restore(manager: ocp.CheckpointManager, template: training.TrainingState, s
     return jax.tree.unflatten(jax.tree.structure(template), leaves)
 
 
-def _load_init(config: TrainConfig, template: training.TrainingState) -> training.TrainingState:
+def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
     """Start from another run's networks and observation statistics (fresh optimizer)."""
     source = RunDir(config.init_from)
     if not source.path.is_dir():
@@ -84,21 +84,21 @@ def _load_init(config: TrainConfig, template: training.TrainingState) -> trainin
     try:
         if manager.latest_step() is None:
             raise ValueError(f"--init-from {source.path} holds no checkpoint")
-        restored = _restore(manager, training.init_state(other, training.make_networks(other)))
+        restored = _restore(manager, ppo.init_state(other, ppo.make_networks(other)))
     finally:
         manager.close()
     return template.replace(
         params=restored.params,
         normalizer_params=restored.normalizer_params,
-        optimizer_state=training.make_optimizer(config).init(restored.params),
+        optimizer_state=ppo.make_optimizer(config).init(restored.params),
     )
 
 
-def _export(run: RunDir, config: TrainConfig, state: training.TrainingState, finished: bool):
+def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished: bool):
     norm = state.normalizer_params
     save_policy(
         run.path,
-        training.policy_layers(state.params),
+        ppo.policy_layers(state.params),
         np.asarray(norm.mean["state"]),
         np.asarray(norm.std["state"]),
         config.to_json(),
@@ -106,7 +106,7 @@ def _export(run: RunDir, config: TrainConfig, state: training.TrainingState, fin
             "finished": finished,
             "trials": int(state.trials),
             "wall_s": float(state.wall_s),
-            "trainer": "brax PPO (mjx_peg/training.py)",
+            "trainer": "brax PPO (mjx_peg/learn/ppo.py)",
         },
     )
     plot_training_curve(run.trials_path, run.curve_path, title=f"{config.preset}: {run.path.name}")
@@ -136,7 +136,7 @@ def train(
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
     env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options)
-    state = training.init_state(config, training.make_networks(config))
+    state = ppo.init_state(config, ppo.make_networks(config))
     manager = run.checkpoints()
     if resume and manager.latest_step() is not None:
         state = _restore(manager, state)
@@ -147,8 +147,8 @@ def train(
             state = _load_init(config, state)
         if primary:
             run.start_tables()
-    step = training.make_iteration(env, config)
-    replicated = training.replicate(state)
+    step = ppo.make_iteration(env, config)
+    replicated = ppo.replicate(state)
     wall0 = float(state.wall_s)
     start = time.monotonic()
     last_save = start
@@ -166,9 +166,9 @@ def train(
             t0 = time.monotonic()
             replicated, trials, metrics = step(replicated)
             # [local devices, all devices, trials per device]: every local copy is the same
-            trials = {k: v.reshape(-1) for k, v in training.unreplicate(trials).items()}
-            metrics = training.unreplicate(metrics)
-            state = training.unreplicate(replicated)
+            trials = {k: v.reshape(-1) for k, v in ppo.unreplicate(trials).items()}
+            metrics = ppo.unreplicate(metrics)
+            state = ppo.unreplicate(replicated)
             now = time.monotonic()
             wall = wall0 + now - start
             state = state.replace(wall_s=np.asarray(wall, np.float32))
@@ -223,7 +223,7 @@ def train(
     if finished and primary:
         _export(run, config, state, finished=True)
     if recent.size == 0:
-        from mjx_peg.run_dir import read_table
+        from mjx_peg.learn.curves import read_table
 
         recent = np.asarray(read_table(run.trials_path)["return"][-100:])
     return TrainSummary(
@@ -237,7 +237,7 @@ def train(
     )
 
 
-def load_state(run_dir) -> tuple[TrainConfig, training.TrainingState]:
+def load_state(run_dir) -> tuple[TrainConfig, ppo.TrainingState]:
     """The config and the latest checkpointed TrainingState of a run directory."""
     run = RunDir(run_dir)
     config = run.read_config()
@@ -245,7 +245,7 @@ def load_state(run_dir) -> tuple[TrainConfig, training.TrainingState]:
     try:
         if manager.latest_step() is None:
             raise ValueError(f"{run.path} holds no checkpoint")
-        template = training.init_state(config, training.make_networks(config))
+        template = ppo.init_state(config, ppo.make_networks(config))
         return config, _restore(manager, template)
     finally:
         manager.close()

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import observation, params, policy_net
+from mjx_peg.policy import network, observation
+from mjx_peg.skill import params
 
 SCHEMA = "mjx-peg-policy"
 SCHEMA_VERSION = 1
@@ -44,7 +45,7 @@ class Policy:
 
     def act(self, obs) -> np.ndarray:
         """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
-        return policy_net.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))
+        return network.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))
 
     def controller_vectors(self, specs) -> np.ndarray:
         """(B, 38) physical parameter vectors for the trials of a `TrialSpec`."""
@@ -52,7 +53,7 @@ class Policy:
 
     def vectors_for(self, obs) -> np.ndarray:
         """(B, 38) physical parameter vectors for (B, 8) observations (`observation.observe`)."""
-        return np.asarray(policy_net.controller_vector(self.act(obs)), dtype=np.float64)
+        return np.asarray(network.controller_vector(self.act(obs)), dtype=np.float64)
 
 
 def _ranges_json(ranges: params.ParamRanges) -> dict:
@@ -90,7 +91,7 @@ def save_policy(
         "observation": {
             "names": list(observation.OBS_NAMES),
             "normalization": "(obs - obs_mean) / obs_std, arrays in policy.npz",
-            "definition": "mjx_peg/observation.py",
+            "definition": "mjx_peg/policy/observation.py",
         },
         "network": {
             "layers": [list(np.shape(k)) for k, _ in layers],

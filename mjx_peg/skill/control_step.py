@@ -13,15 +13,15 @@ This composes the paper's pieces (sections 3-4) into the controller that runs at
 
 Written once over the array-API namespace of its inputs, batched over leading dimensions: the
 MJX engine jits and vmaps it, the C MuJoCo engine runs it batched in NumPy, and the robot runtime
-runs it unbatched in NumPy. Like dmp.py and control.py it imports neither numpy nor jax.
+runs it unbatched in NumPy. Like dmp.py and osc.py it imports neither numpy nor jax.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
-from mjx_peg import control, dmp
-from mjx_peg.params import ControllerParams
+from mjx_peg.skill import dmp, osc
+from mjx_peg.skill.params import ControllerParams
 
 
 class Skill(NamedTuple):
@@ -87,58 +87,64 @@ def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, lever_world, g
 
 def task_state(skill: Skill, tcp_pos, tcp_rot, tcp_vel):
     """y, yd (..., 6) of the tcp in the goal frame; tcp_vel (..., 6) = [linear, angular], world."""
-    return control.task_state(
+    return osc.task_state(
         tcp_pos, tcp_rot, tcp_vel[..., :3], tcp_vel[..., 3:], skill.goal_pos, skill.goal_rot
     )
 
 
-def skill_torque(
-    skill: Skill,
-    basis: Basis,
-    t,
-    tcp_pos,
-    tcp_rot,
-    jac,
-    jdot_qdot,
-    qvel,
-    mass,
-    bias,
-    wrench_goal,
-    torque_limits,
-    tau: float,
-    alpha_s: float,
-    k_ref: float,
-    pinv_damping: float,
-):
-    """(..., n) joint torques of the compliant DMP at time t (s) since the start of the movement.
+class Measurement(NamedTuple):
+    """What one control period measures (a pytree under JAX); leading dims are trials."""
 
-    jac: (..., 6, n) tcp Jacobian (linear rows, then angular), world frame; jdot_qdot: (..., 6);
-    qvel: (..., n); mass: (..., n, n) joint-space inertia H; bias: (..., n) h (Coriolis, gravity);
-    wrench_goal: (..., 6) from `wrench_in_goal_frame`.
-    """
-    tcp_vel = (jac @ qvel[..., None])[..., 0]
-    y, yd = task_state(skill, tcp_pos, tcp_rot, tcp_vel)
-    s = dmp.phase(t, tau, alpha_s)
+    t: object  # (...,) s since the start of the movement
+    tcp_pos: object  # (..., 3) tcp position, world frame
+    tcp_rot: object  # (..., 3, 3) tcp orientation, world frame
+    jac: object  # (..., 6, n) tcp Jacobian (linear rows, then angular), world frame
+    jdot_qdot: object  # (..., 6) Jd qd of the tcp, world frame
+    qvel: object  # (..., n) joint velocities
+    mass: object  # (..., n, n) joint-space inertia H
+    bias: object  # (..., n) h: Coriolis, centrifugal and gravity torques
+    wrench: object  # (..., 6) external wrench at the tcp, goal frame (`wrench_in_goal_frame`)
+
+
+class ControlConfig(NamedTuple):
+    """Constants of the control step shared by every trial of a batch."""
+
+    tau: float  # s, DMP time constant
+    alpha_s: float  # phase decay
+    k_ref: float  # 1/s^2, stiffness the forcing term was fitted at (dmp.scaled_modified_goal)
+    pinv_damping: float  # damping of J+ near singularities
+    torque_limits: object  # (n,) N m, symmetric joint torque limits
+
+
+def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measurement):
+    """(..., n) joint torques of the compliant DMP for one control period (Eqs. 2, 6, 10-14)."""
+    tcp_vel = (meas.jac @ meas.qvel[..., None])[..., 0]
+    y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
+    s = dmp.phase(meas.t, config.tau, config.alpha_s)
     f = dmp.forcing(s, basis.weights, basis.centers, basis.widths)
-    dy = dmp.compliance_offset(skill.compliance, wrench_goal)
+    dy = dmp.compliance_offset(skill.compliance, meas.wrench)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
-    g_m = dmp.scaled_modified_goal(goal, skill.y0, f, k_ref, dy)
-    ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, tau)
-    ydd_world = control.world_from_task_accel(ydd_task, skill.goal_rot)
-    u = control.osc_torque(mass, jac, jdot_qdot, bias, ydd_world, pinv_damping)
-    return control.clamp_torque(u, torque_limits)
+    g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
+    ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)
+    ydd_world = osc.world_from_task_accel(ydd_task, skill.goal_rot)
+    u = osc.osc_torque(
+        meas.mass, meas.jac, meas.jdot_qdot, meas.bias, ydd_world, config.pinv_damping
+    )
+    return osc.clamp_torque(u, config.torque_limits)
 
 
 def start_state(skill_goal_pos, skill_goal_rot, tcp_pos, tcp_rot):
     """(..., 6) y at the start of a trial (the DMP's y0), from the measured tcp pose."""
     xp = tcp_pos.__array_namespace__()
     zero = xp.zeros_like(tcp_pos)
-    y, _ = control.task_state(tcp_pos, tcp_rot, zero, zero, skill_goal_pos, skill_goal_rot)
+    y, _ = osc.task_state(tcp_pos, tcp_rot, zero, zero, skill_goal_pos, skill_goal_rot)
     return y
 
 
 __all__ = [
     "Basis",
+    "ControlConfig",
+    "Measurement",
     "Skill",
     "goal_rotation",
     "make_skill",

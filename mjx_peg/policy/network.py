@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mjx_peg.params import controller_from_action, vector_from_controller
-from mjx_peg.rotations import namespace_of
+from mjx_peg.skill.params import controller_from_action, vector_from_controller
+from mjx_peg.skill.rotations import namespace_of
 
 
 def swish(x, xp):
