@@ -200,6 +200,7 @@ class _Sims:
         self.fields = {name: b.expand(name) for name in TRIAL_MODEL_FIELDS}
         self.state = b.state
         self.time, self.qvel, self.ctrl = b.bind("time"), b.bind("qvel"), b.bind("ctrl")
+        self.qpos = b.bind("qpos")
         self.site_xpos, self.site_xmat = b.bind("site_xpos"), b.bind("site_xmat")
         self.sensordata, self.mass = b.bind("sensordata"), b.bind("M")
         self.cdof, self.cdof_dot = b.bind("cdof"), b.bind("cdof_dot")
@@ -551,6 +552,12 @@ class _Lane:
             if b > a:
                 self.scenes[k].step(ids, torques[a:b])
         np.add(step, 1, out=step)
+
+    @property
+    def qpos(self) -> np.ndarray:
+        """(n, nq) joint positions of rows [0, n) (a copy; for observers)."""
+        parts = [self.scenes[k].qpos[ids] for k, (a, b, ids) in enumerate(self.blocks) if b > a]
+        return np.concatenate(parts) if parts else np.zeros((0, 6))
 
     @property
     def current(self):

@@ -32,9 +32,15 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=int, help="training budget in trials")
     p.add_argument("--time-limit", type=float, help="seconds per training trial")
     p.add_argument("--init-from", help="run directory whose networks start this run")
+    p.add_argument(
+        "--full-time-limit",
+        action="store_true",
+        help="run every failed trial to the time limit (default: a failure that has settled, "
+        "at rest or repeating the same motion, ends early with the same outcome)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite a finished run in --out")
     p.add_argument("--checkpoint-every", type=float, default=60.0, help="seconds (default 60)")
-    p.add_argument("--workers", type=int, help="CPU engine worker processes (default: all cores)")
+    p.add_argument("--workers", type=int, help="CPU engine threads (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -57,6 +63,7 @@ def resolve_config(args):
         "trials": args.trials,
         "time_limit_s": args.time_limit,
         "init_from": args.init_from,
+        "full_time_limit": args.full_time_limit or None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:
