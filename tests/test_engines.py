@@ -125,9 +125,9 @@ def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
     again = run_trials(specs, params, engine="mujoco", config=config, threads=1)
     assert {id(s) for free in cpu_engine._FREE_SIMS.values() for s in free} == cached
     threaded = run_trials(specs, params, engine="mujoco", config=config, threads=1, batch_threads=2)
-    other_data = run_trials(specs, params, engine="mujoco", config=config,
-                            persistent=not cpu_engine.PERSISTENT)  # fmt: skip
-    for other in (lanes, again, threaded, other_data):
+    one_data = run_trials(specs, params, engine="mujoco", config=config, persistent=False)
+    data_each = run_trials(specs, params, engine="mujoco", config=config, persistent=True)
+    for other in (lanes, again, threaded, one_data, data_each):
         for name, value in local.to_arrays().items():
             np.testing.assert_array_equal(getattr(other, name), value, err_msg=name)
 

@@ -66,7 +66,13 @@ from mjx_peg.world.task import TrialSpec
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
 SLOTS_PER_THREAD = 512
-PERSISTENT = True  # see run_trials
+# A persistent batch (one MjData per simulation) continues each step from the position and
+# velocity stages the controller read, but its simulations' memory leaves the caches as the batch
+# grows: measured here (CPU time per step, the baseline jammed in the hole), 6.6 us at 64
+# simulations, 9.5 at 256, 11.3 at 512, against 9.2 at any size with one MjData per C thread
+# (which recomputes those stages) and 5.7 for mj_step on one MjData. Batches of up to this many
+# simulations are persistent (results are the same either way).
+PERSISTENT_MAX_SIMS = 192
 STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 STAGE_ACC = int(mujoco.mjtStage.mjSTAGE_ACC)
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -181,7 +187,7 @@ class _Measured(NamedTuple):
 
 
 class _Sims:
-    """One scene's simulations: a persistent `mujoco.batch.Batch` of `nsim` and its bound fields.
+    """One scene's simulations: a `mujoco.batch.Batch` of `nsim` and its bound fields.
 
     Used by one lane at a time (a Batch serves one Python thread).
     """
@@ -271,12 +277,15 @@ class _Sims:
         )
 
     def current(self, sim: int) -> tuple:
-        """(model, data, ids) of simulation `sim` (copies, reused: for observers)."""
+        """(model, data, ids) of simulation `sim` (copies, reused: for observers). A batch that
+        is not persistent keeps only the state: mj_forward recomputes the rest."""
         if self._view is None:
             self._view = (scene.load_model(*self.key), mujoco.MjData(self.model))
         m, d = self._view
         self.batch.get_model(sim, m)
         self.batch.get_data(sim, d)
+        if not self.kind[1]:
+            mujoco.mj_forward(m, d)
         return m, d, self.ids
 
 
@@ -285,7 +294,13 @@ _FREE_SIMS: dict[tuple, list[_Sims]] = {}
 _FREE_LOCK = threading.Lock()
 
 
-def _take_sims(key: tuple[str, float], nsim: int, kind: tuple[int, bool]) -> _Sims:
+def _take_sims(key: tuple[str, float], nsim: int, kind: tuple) -> _Sims:
+    """Simulations for `key` from the pool, or new ones; kind: (C threads, persistent or None
+    for persistent up to PERSISTENT_MAX_SIMS simulations)."""
+    nthread, persistent = kind
+    if persistent is None:
+        persistent = nsim <= PERSISTENT_MAX_SIMS
+    kind = (nthread, persistent)
     with _FREE_LOCK:
         free = _FREE_SIMS.get((key, kind), [])
         fits = [s for s in free if s.nsim >= nsim]
@@ -307,7 +322,7 @@ def _give_sims(sims: _Sims) -> None:
 def _keep_sims(keys: set) -> None:
     """Drop the free simulations of scenes other than `keys`."""
     with _FREE_LOCK:
-        for cached in set(_FREE_SIMS) - keys:
+        for cached in [k for k in _FREE_SIMS if k[0] not in keys]:
             del _FREE_SIMS[cached]
 
 
@@ -594,7 +609,7 @@ class _Lane:
                 _give_sims(sims)
 
 
-def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple[int, bool], source,
+def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
               observer=None) -> None:  # fmt: skip
     """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
 
@@ -630,7 +645,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple[int, 
         source.stop()
         raise
     source.flush()
-    _keep_sims(set((key, kind) for key in count))
+    _keep_sims(set(count))
     if errors:
         raise errors[0]
 
@@ -645,7 +660,7 @@ def run_trials(
     observer: Callable | None = None,
     workers: int | None = None,
     batch_threads: int | None = None,
-    persistent: bool = PERSISTENT,
+    persistent: bool | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -655,7 +670,8 @@ def run_trials(
     over every lane). batch_threads: C threads of each lane's batches (default 1).
     persistent: one MjData per simulation (`mujoco.batch.Batch(persistent=True)`: each step
     continues from the position and velocity stages the controller read) or one per C thread
-    (a step recomputes them, but its memory stays in the cache); the same results.
+    (a step recomputes them, but its memory stays in the cache); the same results. Default:
+    persistent for batches of up to PERSISTENT_MAX_SIMS simulations.
     progress(count) is called in the caller's thread as trials finish. observer(lane, rows,
     wrench), if given, is called every control period with a lane, its live rows and their
     wrenches (for demos and benchmarks); it needs threads=1, its default then.
@@ -673,7 +689,7 @@ def run_trials(
         1, min(SLOTS_PER_THREAD, -(-n // threads))
     )
     queue = _Queue(n, progress)
-    kind = (batch_threads, bool(persistent))
+    kind = (batch_threads, None if persistent is None else bool(persistent))
     run_lanes(specs, params, config, threads, slots, kind, queue, observer)
     return to_result(queue.records)
 
