@@ -38,9 +38,10 @@ STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def time_engine(specs, params, config, threads, slots=None):
-    start = time.perf_counter()
+    """(result, wall s, CPU s of this process: all its threads)."""
+    start, cpu = time.perf_counter(), time.process_time()
     result = cpu_engine.run_trials(specs, params, config, threads=threads, slots_per_thread=slots)
-    return result, time.perf_counter() - start
+    return result, time.perf_counter() - start, time.process_time() - cpu
 
 
 def call_overhead(specs, params, threads, calls=20):
@@ -83,7 +84,7 @@ def _replay_part(specs, snaps, every, barrier):
             envs[key] = (m, mujoco.MjData(m))
         jobs.append((*envs[key], index, state))
     barrier.wait()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for m, d, index, state in jobs:
         scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
         scene.set_grasp(m, *specs.grasp_error[index])
@@ -91,17 +92,19 @@ def _replay_part(specs, snaps, every, barrier):
         mujoco.mj_setState(m, d, state, STATE)
         for _ in range(every):
             mujoco.mj_step(m, d)
-    return len(jobs) * every, time.perf_counter() - start
+    return len(jobs) * every, time.perf_counter() - start, time.process_time() - cpu
 
 
 def replay(specs, snaps, every, processes):
-    """Bare mj_step from every snapshot on `processes` processes started together; steps/s."""
+    """Bare mj_step from every snapshot on `processes` processes started together: steps/s, and
+    CPU s per step."""
     ctx = multiprocessing.get_context("spawn")
     with ctx.Manager() as manager, ctx.Pool(processes) as pool:
         barrier = manager.Barrier(processes)
         parts = [(specs, snaps[k::processes], every, barrier) for k in range(processes)]
         done = pool.starmap(_replay_part, parts)
-    return sum(steps for steps, _ in done) / max(seconds for _, seconds in done)
+    steps = sum(s for s, _, _ in done)
+    return steps / max(w for _, w, _ in done), sum(c for _, _, c in done) / steps
 
 
 def replay_batch(specs, snaps, every, nthread, nsim=512):
@@ -272,59 +275,38 @@ def main() -> None:
     rows, notes = [], [f"load average before: {os.getloadavg()[0]:.2f}"]
     for threads in sorted({1, args.threads}):
         # Best of three: one replay lasts about a second on this machine, which is noisy.
-        ceiling = max(replay(specs, snaps, args.replay_every, threads) for _ in range(3))
+        ceiling, ceiling_cpu = max(
+            replay(specs, snaps, args.replay_every, threads) for _ in range(3)
+        )
         in_batch = max(replay_batch(specs, snaps, args.replay_every, threads) for _ in range(2))
         # Best of `--repeat` too: other jobs on a shared machine come and go.
-        result, wall = min(
+        result, wall, cpu = min(
             (time_engine(specs, params, full, threads) for _ in range(args.repeat)),
             key=lambda run: run[1],
         )
-        rate = int(result.steps.sum()) / wall
+        steps = int(result.steps.sum())
+        rate, cpu_step = steps / wall, cpu / steps
         slots = min(cpu_engine.SLOTS_PER_THREAD, -(-len(specs) // threads))
-        rows.append(
-            _row(
-                "mujoco",
-                cpu_name(),
-                f"{len(specs)} ({slots} per thread)",
-                threads,
-                rate,
-                len(specs) / wall,
-                f"**{100 * rate / ceiling:.0f} %** of ceiling",
-                result.summary(),
-            )  # fmt: skip
+        ratio = (
+            f"**{100 * rate / ceiling:.0f} %** of ceiling; CPU {1e6 * cpu_step:.2f} µs/step, "
+            f"{100 * ceiling_cpu / cpu_step:.0f} % of the ceiling's"
         )
-        rows.append(
-            _row(
-                "bare mj_step (ceiling)",
-                cpu_name(),
-                len(snaps),
-                f"{threads} processes",
-                ceiling,
-                "-",
-                "",
-                replayed,
-            )  # fmt: skip
-        )
-        rows.append(
-            _row(
-                "bare `Batch.step`",
-                cpu_name(),
-                len(snaps),
-                threads,
-                in_batch,
-                "-",
-                f"{100 * in_batch / ceiling:.0f} % of ceiling",
-                f"{replayed}, 512 simulations per batch, one step per call",
-            )  # fmt: skip
-        )
+        batch = f"{len(specs)} ({slots} per thread)"
+        rows.append(_row("mujoco", cpu_name(), batch, threads, rate, len(specs) / wall, ratio,
+                         result.summary()))  # fmt: skip
+        bare = f"CPU {1e6 * ceiling_cpu:.2f} µs/step"
+        rows.append(_row("bare mj_step (ceiling)", cpu_name(), len(snaps), f"{threads} processes",
+                         ceiling, "-", bare, replayed))  # fmt: skip
+        rows.append(_row("bare `Batch.step`", cpu_name(), len(snaps), threads, in_batch, "-",
+                         f"{100 * in_batch / ceiling:.0f} % of ceiling",
+                         f"{replayed}, 512 simulations per batch, one step per call"))  # fmt: skip
         overhead = call_overhead(specs, params, threads)
         notes.append(f"{threads} thread(s): {1e3 * overhead:.1f} ms per call of 2 one-step trials")
-    early, wall = time_engine(specs, params, full.replace(end_settled=True), args.threads)
+    early, wall, _ = time_engine(specs, params, full.replace(end_settled=True), args.threads)
     rate = int(early.steps.sum()) / wall
-    rows.append(
-        _row("mujoco, early ending", cpu_name(), f"{len(specs)}", args.threads, rate,
-             len(specs) / wall, f"{100 * rate / ceiling:.0f} % of ceiling", early.summary())
-    )  # fmt: skip
+    rows.append(_row("mujoco, early ending", cpu_name(), f"{len(specs)}", args.threads, rate,
+                     len(specs) / wall, f"{100 * rate / ceiling:.0f} % of ceiling",
+                     early.summary()))  # fmt: skip
     notes.append(f"load average after: {os.getloadavg()[0]:.2f}")
     if not args.no_profile:
         notes += ["profile of one lane (threads=1), µs per env-step:"]
