@@ -333,3 +333,26 @@ def test_settled_trials_end_early_with_the_outcome_of_the_full_run():
         if name != "settled":
             np.testing.assert_array_equal(getattr(early, name)[~early.settled],
                                           value[~early.settled], err_msg=name)  # fmt: skip
+
+
+def test_start_trial_edits_only_the_fields_the_engine_expands():
+    """The batch gives each simulation its own TRIAL_MODEL_FIELDS; scene.start_trial must edit
+    no other model field."""
+    import mujoco
+
+    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.world import scene
+
+    specs = _mixed_specs(6, seed=10)
+    for i in range(len(specs)):
+        key = cpu_engine._scene_key(specs, i)
+        before, m = scene.load_model(*key), scene.load_model(*key)
+        scene.start_trial(m, mujoco.MjData(m), scene.scene_ids(m), specs.board_pos[i],
+                          specs.board_yaw[i], specs.grasp_error[i], specs.friction[i],
+                          specs.q0[i])  # fmt: skip
+        changed = {
+            name for name in dir(m)
+            if isinstance(getattr(m, name, None), np.ndarray)
+            and not np.array_equal(getattr(m, name), getattr(before, name))
+        }  # fmt: skip
+        assert changed <= set(cpu_engine.TRIAL_MODEL_FIELDS), changed

@@ -2,9 +2,10 @@
 batched in NumPy over every live trial at once.
 
 A lane (`_Lane`) runs up to `slots` trials together. Each scene (shape, size) it meets is a
-persistent `mujoco.batch.Batch` (`_Sims`): one MjData per simulation, and the model fields that
-`scene.start_trial` edits per trial (board pose, grasp, friction) expanded per simulation. One
-control period of a lane is
+`mujoco.batch.Batch` (`_Sims`) whose model fields that `scene.start_trial` edits per trial
+(board pose, grasp, friction) are expanded per simulation; small batches keep one MjData per
+simulation (persistent), larger ones one per C thread (PERSISTENT_MAX_SIMS). One control period
+of a lane is
 
 1. per scene, one `Batch.step(ids, stage=mjSTAGE_VEL)` for its live simulations, in C without
    the GIL: the torques written to `ctrl` are applied (mj_step2), then the position and velocity
