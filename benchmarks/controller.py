@@ -52,7 +52,7 @@ def controller_step(
     s = dmp.phase(t, CONFIG.tau, CONFIG.alpha_s)
     f = dmp.forcing(s, WEIGHTS, CENTERS, WIDTHS)
     dy = dmp.compliance_offset(compliance, wrench)
-    g_m = dmp.modified_goal(0.0 * y0, y0, f, k_y, dy)
+    g_m = dmp.scaled_modified_goal(0.0 * y0, y0, f, CONFIG.k_ref, dy)
     ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, CONFIG.tau)
     u = osc.osc_torque(mass, jac, jdot_qdot, bias, osc.world_from_task_accel(ydd, goal_rot), 0.01)
     return osc.clamp_torque(u, LIMITS)
@@ -60,7 +60,7 @@ def controller_step(
 
 def make_inputs(batch: int, seed: int = 0) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
-    from mjx_peg.skill.rotations import matrix_from_rotvec
+    from mjx_peg.world.rotations import matrix_from_rotvec
 
     p = params.controller_from_action(rng.normal(size=(batch, 38)))
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)

@@ -14,7 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_peg.skill import dmp, osc, params, rotations
+from mjx_peg.skill import dmp, osc, params
+from mjx_peg.world import rotations
 
 TOL64 = 1e-6
 TOL32 = 1e-4
@@ -111,13 +112,12 @@ def _cases():
             lambda r: (stiffness(r), 1e-3 * r.normal(size=(b, 6, 6)), 10 * r.normal(size=(b, 6))),
             all_batched,
         ),
-        "modified_goal": (
-            dmp.modified_goal,
+        "scaled_modified_goal": (
+            lambda g, y0, f, dy: dmp.scaled_modified_goal(g, y0, f, 250.0, dy),
             lambda r: (
                 r.normal(size=(b, 6)),
                 r.normal(size=(b, 6)),
                 r.normal(size=b),
-                stiffness(r),
                 r.normal(size=(b, 6)),
             ),
             all_batched,
@@ -234,7 +234,7 @@ def _torque_from_action(action, wrench, y, yd, y0, s):
     d_y = dmp.critical_damping(k_y, 1.0)
     f = dmp.forcing(s, _WEIGHTS, _CENTERS, _WIDTHS)
     dy = dmp.compliance_offset(p.compliance, wrench)
-    g_m = dmp.modified_goal(jnp.zeros_like(y0), y0, f, k_y, dy)
+    g_m = dmp.scaled_modified_goal(jnp.zeros_like(y0), y0, f, 300.0, dy)
     ydd = dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, 1.0)
     rng = np.random.default_rng(5)
     mass, jac = jnp.asarray(_mass(rng, 1)[0]), jnp.asarray(_jacobian(rng, 1)[0])
@@ -270,20 +270,20 @@ _NO_JAX = textwrap.dedent(
     """
     import sys
     sys.modules["jax"] = None  # `import jax` now raises ImportError
-    import mjx_peg.skill.rotations, mjx_peg.skill.dmp, mjx_peg.skill.osc, mjx_peg.skill.params
+    import mjx_peg.world.rotations, mjx_peg.skill.dmp, mjx_peg.skill.osc, mjx_peg.skill.params
     assert "numpy" not in sys.modules, "a module imported numpy at top level"
     import numpy as np
     from mjx_peg.skill import osc
     from mjx_peg.skill import dmp
     from mjx_peg.skill import params
-    from mjx_peg.skill import rotations
+    from mjx_peg.world import rotations
     p = params.controller_from_action(np.zeros((2, 38)))
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)
     config = dmp.DMPConfig()
     w = dmp.fit_minimum_jerk_weights(config)
     c, wd = dmp.basis_centers(config.n_basis, config.alpha_s)
     f = dmp.forcing(dmp.phase(np.array([0.1, 0.2]), 1.0, 4.0), w, c, wd)
-    g_m = dmp.modified_goal(np.zeros(6), np.ones((2, 6)), f, k_y, np.zeros(6))
+    g_m = dmp.scaled_modified_goal(np.zeros(6), np.ones((2, 6)), f, 300.0, np.zeros(6))
     ydd = dmp.dmp_acceleration(np.ones((2, 6)), np.zeros(6), g_m, k_y,
                                dmp.critical_damping(k_y, 1.0), 1.0)
     u = osc.osc_torque(np.eye(6), np.eye(6), np.zeros(6), np.zeros(6), ydd, 0.01)

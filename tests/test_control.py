@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from mjx_peg.skill import dmp, osc
-from mjx_peg.skill.rotations import matrix_from_rotvec, rotvec_from_matrix, skew
+from mjx_peg.world.rotations import matrix_from_rotvec, rotvec_from_matrix, skew
 
 H = 1e-6  # finite-difference step (s)
 PINV_DAMPING = 0.01  # as in TrialConfig

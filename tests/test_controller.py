@@ -6,6 +6,7 @@ from scipy.spatial.transform import Rotation
 from mjx_peg.engines.trial import TrialConfig, control_config, fitted_basis
 from mjx_peg.skill import control_step
 from mjx_peg.skill.baseline import baseline_controller
+from mjx_peg.world.rotations import tool_down_rotation
 
 
 def _random_rot(rng, n=None):
@@ -32,16 +33,16 @@ def test_contact_force_at_tcp_gives_force_and_no_moment():
         np.testing.assert_allclose(w[3:], 0.0, atol=1e-12)
 
 
-def test_goal_rotation_points_the_tool_down():
+def test_tool_down_rotation_points_the_tool_down():
     yaw = np.array([0.0, 0.3, np.pi / 2])
-    rot = control_step.goal_rotation(yaw)
+    rot = tool_down_rotation(yaw)
     np.testing.assert_allclose(rot[:, :, 2], [[0, 0, -1]] * 3, atol=1e-15)
     np.testing.assert_allclose(rot[:, 0, 0], np.cos(yaw))
     np.testing.assert_allclose(np.linalg.det(rot), 1.0)
 
 
 def _inputs(rng, batch, params):
-    goal_rot = control_step.goal_rotation(rng.uniform(0, np.pi / 2, batch))
+    goal_rot = tool_down_rotation(rng.uniform(0, np.pi / 2, batch))
     goal_pos = rng.normal(size=(batch, 3))
     skill = control_step.make_skill(
         params, goal_pos, goal_rot, rng.normal(size=(batch, 6)) * 0.05, 1.0

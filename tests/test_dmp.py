@@ -103,7 +103,11 @@ def test_off_diagonal_compliance_couples_exactly(weights):
 
 
 def test_coupling_term_equals_modified_goal_form():
-    """Eq. 8 (spring + forcing + c_c) and Eq. 10 (PD towards g_m) are the same acceleration."""
+    """Eq. 8 (spring + forcing + c_c) and Eq. 10 (PD towards g_m) are the same acceleration.
+
+    With the forcing scaled by K_y / k_ref (`scaled_modified_goal`), Eq. 8's forcing term is
+    (g - y0) f K_y / k_ref; at K_y = k_ref it is the paper's literal form.
+    """
     rng = np.random.default_rng(1)
     y, yd, g, y0 = rng.normal(size=(4, 7, 6))
     f = rng.normal(size=7)
@@ -111,8 +115,9 @@ def test_coupling_term_equals_modified_goal_form():
     d_y = dmp.critical_damping(k_y, 0.8)
     compliance, wrench = rng.normal(size=(7, 6, 6)), rng.normal(size=(7, 6))
     c_c = dmp.coupling_term(k_y, compliance, wrench)
-    eq8 = (k_y * (g - y) - d_y * yd + (g - y0) * f[:, None] + c_c) / 0.8
-    g_m = dmp.modified_goal(g, y0, f, k_y, dmp.compliance_offset(compliance, wrench))
+    k_ref = 250.0
+    eq8 = (k_y * (g - y) - d_y * yd + (g - y0) * f[:, None] * k_y / k_ref + c_c) / 0.8
+    g_m = dmp.scaled_modified_goal(g, y0, f, k_ref, dmp.compliance_offset(compliance, wrench))
     np.testing.assert_allclose(dmp.dmp_acceleration(y, yd, g_m, k_y, d_y, 0.8), eq8, rtol=1e-12)
 
 

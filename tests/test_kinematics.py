@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from mjx_peg.world import constants
 from mjx_peg.world import kinematics as kin
+from mjx_peg.world.rotations import matrix_from_rotvec, rotvec_from_matrix, tool_down_rotation
 
 TOOL = 0.12  # m, any tool length works for the pure-kinematics tests
 IK_TOL = 1e-6  # m and rad, the brief's round-trip tolerance
@@ -37,7 +38,7 @@ def _elementary_chain(q: np.ndarray) -> np.ndarray:
 
 
 def _rot_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(kin.rotvec_from_matrix(a @ np.swapaxes(b, -1, -2)), axis=-1)
+    return np.linalg.norm(rotvec_from_matrix(a @ np.swapaxes(b, -1, -2)), axis=-1)
 
 
 def test_fk_zero_pose_is_urs_published_one():
@@ -97,7 +98,7 @@ def test_jacobian_matches_finite_differences():
         p_plus, r_plus = kin.fk_tcp(q + dq, TOOL)
         p_minus, r_minus = kin.fk_tcp(q - dq, TOOL)
         lin = (p_plus - p_minus) / (2 * h)
-        ang = kin.rotvec_from_matrix(r_plus @ np.swapaxes(r_minus, -1, -2)) / (2 * h)
+        ang = rotvec_from_matrix(r_plus @ np.swapaxes(r_minus, -1, -2)) / (2 * h)
         np.testing.assert_allclose(jac[:, :3, j], lin, atol=1e-5)
         np.testing.assert_allclose(jac[:, 3:, j], ang, atol=1e-5)
 
@@ -148,7 +149,7 @@ def test_ik_closest_picks_home_branch_and_is_exact():
     rng = np.random.default_rng(5)
     radius, angle = rng.uniform(0.35, 0.65, 500), rng.uniform(-np.pi / 3, np.pi / 3, 500)
     pos = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(0, 0.2, 500)], -1)
-    rot = kin.tool_down_rotation(rng.uniform(-0.5, 2.0, 500))
+    rot = tool_down_rotation(rng.uniform(-0.5, 2.0, 500))
     q, found = kin.ik_tcp_closest(pos, rot, TOOL)
     assert found.all()
     pos_err, rot_err = kin.pose_error(q, pos, rot, TOOL)
@@ -158,9 +159,9 @@ def test_ik_closest_picks_home_branch_and_is_exact():
 
 
 def test_ik_out_of_reach_finds_nothing():
-    q, found = kin.ik_tcp_closest(np.array([1.5, 0.0, 0.1]), kin.tool_down_rotation(0.0), TOOL)
+    q, found = kin.ik_tcp_closest(np.array([1.5, 0.0, 0.1]), tool_down_rotation(0.0), TOOL)
     assert not found and np.all(np.isnan(q))
-    _, valid = kin.ik_tcp(np.array([0.0, 0.0, 0.3]), kin.tool_down_rotation(0.0), TOOL)
+    _, valid = kin.ik_tcp(np.array([0.0, 0.0, 0.3]), tool_down_rotation(0.0), TOOL)
     assert not valid.any()  # on the base axis: inside the d4 offset cylinder
 
 
@@ -186,12 +187,12 @@ def test_rotation_helpers_round_trip():
     rotvec = Rotation.random(200, random_state=7).as_rotvec()
     rotvec[:5] *= (np.pi - 1e-7) / np.linalg.norm(rotvec[:5], axis=-1, keepdims=True)
     rotvec[5] = 0.0
-    rot = kin.matrix_from_rotvec(rotvec)
+    rot = matrix_from_rotvec(rotvec)
     np.testing.assert_allclose(rot, Rotation.from_rotvec(rotvec).as_matrix(), atol=1e-12)
-    np.testing.assert_allclose(kin.rotvec_from_matrix(rot), rotvec, atol=1e-6)
+    np.testing.assert_allclose(rotvec_from_matrix(rot), rotvec, atol=1e-6)
     yaw = rng.uniform(-np.pi, np.pi, 10)
     expected = Rotation.from_euler("ZX", np.stack([yaw, np.full(10, np.pi)], -1)).as_matrix()
-    np.testing.assert_allclose(kin.tool_down_rotation(yaw), expected, atol=1e-12)
+    np.testing.assert_allclose(tool_down_rotation(yaw), expected, atol=1e-12)
     assert np.all(kin.wrap_angle(np.array([np.pi, -np.pi, 3 * np.pi])) == np.pi)
 
 

@@ -145,6 +145,17 @@ def test_safety_stop_holds_the_arm(spoil, message):
     assert run.commands == arm.k - 1  # no command after the bad reading
 
 
+def test_runtime_defaults_to_the_evaluation_trial():
+    """Without a config the runtime uses TrialConfig() (as the README's example does)."""
+    arm = _FakeArm(lambda s, k: s)
+    default = SkillRuntime(baseline_params(), arm.hole)
+    explicit = SkillRuntime(baseline_params(), arm.hole, TrialConfig())
+    first = arm.read()
+    default.start(first), explicit.start(first)
+    reading = arm.read()
+    np.testing.assert_array_equal(default.torque(reading), explicit.torque(reading))
+
+
 def test_runtime_stops_on_a_non_finite_torque(monkeypatch):
     from mjx_peg.robot import runtime as module
 

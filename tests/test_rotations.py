@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mjx_peg.skill import rotations as rot
+from mjx_peg.world import rotations as rot
 
 TOL = 1e-12
 

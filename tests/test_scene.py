@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from mjx_peg.world import constants, scene
+from mjx_peg.world.rotations import tool_down_rotation
 
 SIZES_MM = (25, 37, 50, 60)
 ALL_SCENES = [(shape, mm) for shape in constants.SHAPES for mm in SIZES_MM]
@@ -60,14 +61,12 @@ def rot_angle(r1, r2):
 def place_tool_down(model, tcp_pos, yaw):
     """MjData with the arm's tcp at `tcp_pos`, tool pointing down at `yaw` (mj_forward done)."""
     ids = scene.scene_ids(model)
-    q = scene.solve_site_pose(model, tcp_pos, scene.tool_down_rotation(yaw))
+    q = scene.solve_site_pose(model, tcp_pos, tool_down_rotation(yaw))
     data = mujoco.MjData(model)
     data.qpos[ids.qpos_adr] = q
     mujoco.mj_forward(model, data)
     assert np.linalg.norm(data.site_xpos[ids.tcp_site] - tcp_pos) < 1e-9
-    assert (
-        rot_angle(data.site_xmat[ids.tcp_site].reshape(3, 3), scene.tool_down_rotation(yaw)) < 1e-9
-    )
+    assert rot_angle(data.site_xmat[ids.tcp_site].reshape(3, 3), tool_down_rotation(yaw)) < 1e-9
     return data
 
 
@@ -242,7 +241,7 @@ def test_peg_passes_the_hole_straight_and_hits_with_3mm_offset(shape, mm):
     data = place_tool_down(model, (0.5, -0.05, 0.35), yaw)
     ids = scene.scene_ids(model)
     tip = data.site_xpos[ids.tip_site].copy()
-    rot = scene.tool_down_rotation(yaw)
+    rot = tool_down_rotation(yaw)
     board = ids.board_body
 
     def probe(h, offset_board=(0.0, 0.0)):
@@ -333,9 +332,9 @@ def test_ft_sensor_tared_free_space_and_known_push(shape):
     scene.set_board_pose(model, 0.45, 0.0, 0.0)
     yaw, spot = 0.0, np.array([0.45 + 0.065, 0.0])  # a solid part of the board top
     top = constants.HOLE_DEPTH
-    q_high = scene.solve_site_pose(model, (*spot, top + 0.05), scene.tool_down_rotation(yaw))
+    q_high = scene.solve_site_pose(model, (*spot, top + 0.05), tool_down_rotation(yaw))
     q_low = scene.solve_site_pose(
-        model, (*spot, top + 0.003), scene.tool_down_rotation(yaw), q_init=q_high
+        model, (*spot, top + 0.003), tool_down_rotation(yaw), q_init=q_high
     )
     data = mujoco.MjData(model)
     data.qpos[ids.qpos_adr] = q_high

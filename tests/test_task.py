@@ -10,6 +10,7 @@ from scipy import stats
 
 from mjx_peg.world import kinematics as kin
 from mjx_peg.world import task
+from mjx_peg.world.rotations import rotvec_from_matrix, tool_down_rotation
 from mjx_peg.world.task import HOLE_DEPTH, PEG_LENGTH, SHAPES, TaskConfig, TrialSpec, sample_trials
 
 N = 10_000
@@ -29,7 +30,9 @@ def default_specs():
 
 @pytest.fixture(scope="module")
 def paper_specs():
-    config = TaskConfig.paper().replace(start_xy_jitter=0.005, start_tilt_jitter=np.deg2rad(3.0))
+    config = TaskConfig.from_mm_deg(("circle", "square"), 50, 8, 12).replace(
+        start_xy_jitter=0.005, start_tilt_jitter=np.deg2rad(3.0)
+    )
     return config, sample_trials(config, 1, 2000)
 
 
@@ -73,8 +76,8 @@ def test_samples_stay_inside_every_range(which, request):
     assert np.all((height >= config.start_height[0]) & (height <= config.start_height[1]))
     offset = np.linalg.norm(s.tcp0_pos[:, :2] - s.hole_est_pos, axis=1)
     assert np.all(offset <= config.start_xy_jitter + eps)
-    aligned = kin.tool_down_rotation(s.hole_est_yaw)
-    tilt = np.linalg.norm(kin.rotvec_from_matrix(s.tcp0_rot @ np.swapaxes(aligned, 1, 2)), axis=1)
+    aligned = tool_down_rotation(s.hole_est_yaw)
+    tilt = np.linalg.norm(rotvec_from_matrix(s.tcp0_rot @ np.swapaxes(aligned, 1, 2)), axis=1)
     assert np.all(tilt <= config.start_tilt_jitter + 1e-9)
     assert (
         offset.max() > 0.9 * config.start_xy_jitter and tilt.max() > 0.9 * config.start_tilt_jitter
@@ -191,7 +194,7 @@ def test_bad_configs_fail_with_one_line():
 
 
 def test_presets_and_replace():
-    paper = TaskConfig.paper()
+    paper = TaskConfig.from_mm_deg(("circle", "square"), 50, 8, 12)
     assert paper.shapes == ("circle", "square") and paper.sizes == (0.05,)
     assert paper.linear_error == 0.008 and math.isclose(paper.angular_error, math.radians(12))
     changed = paper.replace(shapes=["triangle"], sizes=[0.025, 0.06])

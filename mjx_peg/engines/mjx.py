@@ -37,16 +37,15 @@ from mjx_peg.engines.trial import (
 from mjx_peg.skill.control_step import (
     Basis,
     Measurement,
-    goal_rotation,
     make_skill,
     skill_torque,
     start_state,
     wrench_in_goal_frame,
 )
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.rotations import quat_from_yaw
 from mjx_peg.world import constants, scene
-from mjx_peg.world.task import TrialSpec
+from mjx_peg.world.rotations import quat_from_yaw
+from mjx_peg.world.task import TrialSpec, goal_pose
 
 # outcome array -> slot field it is written from
 _OUTCOMES = {
@@ -88,8 +87,7 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
     peg_quat = np.stack(
         [scene.grasp_quat(float(a), float(b)) for a, b in zip(tilt_x, tilt_y, strict=True)]
     )
-    goal_pos = np.concatenate([specs.hole_est_pos, np.full((n, 1), config.goal_height)], axis=1)
-    goal_rot = goal_rotation(np.asarray(specs.hole_est_yaw, dtype=np.float64))
+    goal_pos, goal_rot = goal_pose(specs.hole_est_pos, specs.hole_est_yaw)
     return dict(
         board_pos3=np.concatenate([specs.board_pos, zeros[:, None]], axis=1),
         board_quat=board_quat,
@@ -158,7 +156,7 @@ class _Program:
         d = mjx.make_data(m)
         d = d.replace(qpos=d.qpos.at[self.qpos_adr].set(inp["q0"]))
         d = mjx.forward(m, d)
-        d = d.replace(ctrl=d.qfrc_bias)
+        d = d.replace(ctrl=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr))
         d = mjx.forward(m, d)
         tcp_pos, tcp_rot, _, _, force, torque, _, _ = self._sense(m, d)
         tare = jnp.concatenate([force, torque])
@@ -209,7 +207,7 @@ class _Program:
             jdot_qdot=jdq,
             qvel=d.qvel,
             mass=mjx.full_m(m, d),
-            bias=d.qfrc_bias - d.qfrc_passive,
+            bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr),
             wrench=wrench,
         )
         u = skill_torque(self.control, skill, self.basis, meas)

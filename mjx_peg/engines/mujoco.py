@@ -49,7 +49,6 @@ from mjx_peg.engines.trial import (
     is_success,
     settle_close,
     settle_observe,
-    trial_goals,
     trial_reward,
 )
 from mjx_peg.skill.control_step import (
@@ -62,7 +61,7 @@ from mjx_peg.skill.control_step import (
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
-from mjx_peg.world.task import TrialSpec
+from mjx_peg.world.task import TrialSpec, goal_pose
 
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
@@ -262,7 +261,7 @@ class _Sims:
             rows = lambda a: a  # noqa: E731
         else:
             rows = lambda a: take(a, ids, axis=0)  # noqa: E731
-        bias = rows(self.qfrc_bias) - rows(self.qfrc_passive)  # h: Coriolis, gravity, damping
+        bias = scene.bias_torque(rows(self.qfrc_bias), rows(self.qfrc_passive), self.ids.dof_adr)
         return _Measured(
             rows(self.time),
             rows(self.qvel),
@@ -430,8 +429,8 @@ class _Lane:
         sim = sims.free.pop()
         d = sims.load(sim, s, index)
         self.tare[row] = d.sensordata[sims.ft]
-        goal_pos, goal_rot = trial_goals(
-            s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1], cfg
+        goal_pos, goal_rot = goal_pose(
+            s.hole_est_pos[index : index + 1], s.hole_est_yaw[index : index + 1]
         )
         tcp = sims.ids.tcp_site
         y0 = start_state(goal_pos[0], goal_rot[0], d.site_xpos[tcp].copy(),

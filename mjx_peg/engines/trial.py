@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from mjx_peg.skill import dmp
-from mjx_peg.skill.control_step import Basis, ControlConfig, goal_rotation
+from mjx_peg.skill.control_step import Basis, ControlConfig
 from mjx_peg.skill.params import ControllerParams, controller_from_vector
 from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
 
@@ -37,7 +37,6 @@ class TrialConfig:
 
     time_limit_s: float = 60.0  # the paper's evaluation limit; training may use less
     timestep: float = 0.002  # physics and control period (500 Hz), must match the scene
-    goal_height: float = 0.0  # height of the nominal tip's goal above the table top (m)
     success_height: float = 0.02  # success: tip within this height of the table (m)
     dmp: dmp.DMPConfig = dataclasses.field(default_factory=dmp.DMPConfig)
     pinv_damping: float = 0.01  # damping of J+ near singularities
@@ -160,17 +159,6 @@ def fitted_basis(config: dmp.DMPConfig) -> Basis:
     centers, widths = dmp.basis_centers(config.n_basis, config.alpha_s)
     weights = dmp.fit_minimum_jerk_weights(config)
     return Basis(np.asarray(weights), np.asarray(centers), np.asarray(widths))
-
-
-def trial_goals(hole_est_pos: np.ndarray, hole_est_yaw: np.ndarray, config: TrialConfig):
-    """Goal of the tcp per trial: the estimated hole centre at `goal_height`, tool down.
-
-    hole_est_pos: (B, 2); hole_est_yaw: (B,) -> goal_pos (B, 3), goal_rot (B, 3, 3).
-    """
-    goal_pos = np.concatenate(
-        [hole_est_pos, np.full((hole_est_pos.shape[0], 1), config.goal_height)], axis=1
-    )
-    return goal_pos, goal_rotation(np.asarray(hole_est_yaw, dtype=np.float64))
 
 
 def destination(board_pos):

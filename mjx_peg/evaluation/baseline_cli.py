@@ -5,8 +5,6 @@ mjx-peg-baseline --linear-mm 3 --angular-deg 4 --trials 100   # per shape, 60 s 
 
 from __future__ import annotations
 
-import numpy as np
-
 from mjx_peg import cli
 from mjx_peg.engines import ENGINES, run_trials
 from mjx_peg.engines.trial import TrialConfig
@@ -38,12 +36,7 @@ def main(argv=None) -> int:
     try:
         config = TrialConfig(time_limit_s=args.time_limit)
         for shape in shapes:
-            task = TaskConfig(
-                shapes=(shape,),
-                sizes=(args.size / 1000.0,),
-                linear_error=args.linear_mm / 1000.0,
-                angular_error=np.deg2rad(args.angular_deg),
-            )
+            task = TaskConfig.from_mm_deg((shape,), args.size, args.linear_mm, args.angular_deg)
             specs = sample_trials(task, args.seed, args.trials)
             result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
             print(

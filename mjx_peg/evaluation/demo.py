@@ -92,12 +92,7 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
         raise ValueError("error ranges must be >= 0")
     if not args.time_limit > 0:
         raise ValueError("--time-limit must be positive")
-    task = TaskConfig(
-        shapes=(args.shape,),
-        sizes=(args.size / 1000.0,),
-        linear_error=args.linear_mm / 1000.0,
-        angular_error=np.deg2rad(args.angular_deg),
-    )
+    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
     label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"

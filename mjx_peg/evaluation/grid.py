@@ -148,12 +148,8 @@ class EvalConfig:
 
 def task_config(config: EvalConfig, shape: str, linear_mm: float, angular_deg: float):
     """The TaskConfig of one shape and error range of an evaluation (SI units)."""
-    return TaskConfig(
-        shapes=(shape,),
-        sizes=(config.size_mm / 1000.0,),
-        linear_error=linear_mm / 1000.0,
-        angular_error=math.radians(angular_deg),
-        time_limit_s=config.time_limit_s,
+    return TaskConfig.from_mm_deg(
+        (shape,), config.size_mm, linear_mm, angular_deg, time_limit_s=config.time_limit_s
     )
 
 

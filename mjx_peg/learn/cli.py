@@ -1,4 +1,4 @@
-"""`python train.py`: learn the 38 controller numbers with Brax PPO (see train_config.py presets).
+"""`python train.py`: learn the 38 controller numbers with Brax PPO (presets in learn/config.py).
 
     python train.py                                  # quick preset, CPU, a few minutes
     python train.py --preset paper --out runs/paper  # the paper's training conditions

@@ -99,11 +99,11 @@ class TrainConfig:
         return -(-self.trials // self.num_envs)
 
     def task(self) -> TaskConfig:
-        return TaskConfig(
-            shapes=self.shapes,
-            sizes=tuple(s / 1000.0 for s in self.size_mm),
-            linear_error=self.linear_mm / 1000.0,
-            angular_error=math.radians(self.angular_deg),
+        return TaskConfig.from_mm_deg(
+            self.shapes,
+            self.size_mm,
+            self.linear_mm,
+            self.angular_deg,
             time_limit_s=self.time_limit_s,
         )
 

@@ -73,12 +73,7 @@ def _setup(args):
     if args.linear_mm < 0 or args.angular_deg < 0:
         raise ValueError("error ranges must be >= 0")
     steps = command_steps(args.command_hz)
-    task = TaskConfig(
-        shapes=(args.shape,),
-        sizes=(args.size / 1000.0,),
-        linear_error=args.linear_mm / 1000.0,
-        angular_error=math.radians(args.angular_deg),
-    )
+    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
     specs = sample_trials(task, args.seed, args.trials)
     if args.policy != "baseline" and not Path(args.policy).exists():
         raise ValueError(f"--policy {args.policy}: no such run directory")

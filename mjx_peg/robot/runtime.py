@@ -3,8 +3,8 @@
     runtime = SkillRuntime(controller_vector("runs/paper", hole), hole)
     run = run_skill(arm, runtime, time_limit_s=60.0)
 
-`SkillRuntime` holds one insertion: the goal from the estimated hole (as in `trial.trial_goals`),
-the tare and the DMP's start taken at the first reading, then `controller.skill_torque` on each
+`SkillRuntime` holds one insertion: the goal from the estimated hole (as in `task.goal_pose`),
+the tare and the DMP's start taken at the first reading, then `control_step.skill_torque` on each
 reading. It stops the skill (`SafetyStop`) on a non-finite measurement or torque, a joint faster
 than `TrialConfig.max_joint_speed` (twice the UR5e's 180 deg/s, where the real arm would
 protective-stop; the engines count such a trial as failed, `unstable`) or a clock that runs
@@ -32,7 +32,6 @@ from mjx_peg.engines.trial import (
     is_settled,
     settle_start,
     settle_update,
-    trial_goals,
 )
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import Policy, load_policy
@@ -47,6 +46,7 @@ from mjx_peg.skill.control_step import (
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants
+from mjx_peg.world.task import goal_pose
 
 
 class SafetyStop(RuntimeError):
@@ -110,10 +110,8 @@ class SkillRuntime:
         self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
         self.hole = hole
         self.basis = fitted_basis(cfg.dmp)
-        self.goal_pos, self.goal_rot = trial_goals(
-            np.array([[hole.x, hole.y]]), np.array([hole.yaw]), cfg
-        )
-        self.control = control_config(config)
+        self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
+        self.control = control_config(cfg)
         self.skill = None
         self.tare = np.zeros((1, 6))
         self.t0 = self.last_t = 0.0

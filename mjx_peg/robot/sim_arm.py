@@ -66,7 +66,7 @@ class SimArm:
             jac=np.concatenate([self._jl, self._ja])[:, dof],
             jac_dot=np.concatenate([self._jdl, self._jda])[:, dof],
             mass=self._mass[np.ix_(dof, dof)].copy(),
-            bias=d.qfrc_bias[dof] - d.qfrc_passive[dof],  # with the joints' damping
+            bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, dof),
             force=sd[fa : fa + 3].copy(),
             torque=sd[ta : ta + 3].copy(),
             ft_pos=d.site_xpos[ids.ft_site].copy(),

@@ -43,22 +43,6 @@ class Basis(NamedTuple):
     widths: object  # (n_basis,)
 
 
-def goal_rotation(yaw):
-    """(..., 3, 3) tool-down orientation whose x axis is at `yaw` about world z.
-
-    R = Rz(yaw) Rx(pi): the tool z axis points along world -z.
-    """
-    xp = yaw.__array_namespace__()
-    c, s = xp.cos(yaw), xp.sin(yaw)
-    z, o = xp.zeros_like(yaw), xp.ones_like(yaw)
-    rows = [
-        xp.stack([c, s, z], axis=-1),
-        xp.stack([s, -c, z], axis=-1),
-        xp.stack([z, z, -o], axis=-1),
-    ]
-    return xp.stack(rows, axis=-2)
-
-
 def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float) -> Skill:
     """Skill constants from the learned parameters and the goal; D_y for critical damping."""
     k_y = dmp.stiffness_diag(params.k_t, params.k_theta)
@@ -146,7 +130,6 @@ __all__ = [
     "ControlConfig",
     "Measurement",
     "Skill",
-    "goal_rotation",
     "make_skill",
     "skill_torque",
     "start_state",

@@ -34,7 +34,7 @@ import dataclasses
 import importlib
 import math
 
-from mjx_peg.skill.rotations import namespace_of
+from mjx_peg.world.rotations import namespace_of
 
 WIDTH_PER_GAP = 0.3  # basis width sigma_i over the distance between neighbouring centres
 
@@ -129,11 +129,6 @@ def compliance_offset(compliance, wrench):
 def coupling_term(k_y, compliance, wrench):
     """(..., 6) c_c = K_y C F (Eq. 9); k_y (..., 6) diagonal of K_y."""
     return k_y * compliance_offset(compliance, wrench)
-
-
-def modified_goal(g, y0, f, k_y, dy):
-    """(..., 6) g_m = g + K_y^-1 (g - y0) f(s) + dy (Eq. 11); f (...,), k_y (..., 6)."""
-    return g + (g - y0) * f[..., None] / k_y + dy
 
 
 def scaled_modified_goal(g, y0, f, k_ref: float, dy):
@@ -260,7 +255,6 @@ __all__ = [
     "fit_minimum_jerk_weights",
     "forcing",
     "minimum_jerk",
-    "modified_goal",
     "phase",
     "rollout",
     "scaled_modified_goal",

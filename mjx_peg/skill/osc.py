@@ -14,7 +14,7 @@ module imports neither numpy nor jax.
 
 from __future__ import annotations
 
-from mjx_peg.skill.rotations import namespace_of, rotvec_from_matrix
+from mjx_peg.world.rotations import namespace_of, rotvec_from_matrix
 
 
 def _matvec(mat, vec):
@@ -59,6 +59,13 @@ def world_from_task_accel(ydd_task, goal_rot_world):
     return xp.concat([lin, ang], axis=-1)
 
 
+def damped_gram(jac, damping):
+    """(..., 6, 6) J J^T + lambda^2 I of jac (..., 6, n): the matrix `damped_pinv` inverts."""
+    xp = namespace_of(jac)
+    m = jac.shape[-2]
+    return jac @ _transpose(jac) + (damping**2) * xp.eye(m, dtype=jac.dtype)
+
+
 def damped_pinv(jac, damping):
     """(..., n, 6) damped pseudo-inverse J+ = J^T (J J^T + lambda^2 I)^-1 of jac (..., 6, n).
 
@@ -72,11 +79,8 @@ def damped_pinv(jac, damping):
     singular poses.
     """
     xp = namespace_of(jac)
-    jac_t = _transpose(jac)
-    m = jac.shape[-2]
-    gram = jac @ jac_t + (damping**2) * xp.eye(m, dtype=jac.dtype)
     # J^T (J J^T + l^2 I)^-1 = ((J J^T + l^2 I)^-1 J)^T since the Gram matrix is symmetric.
-    return _transpose(xp.linalg.solve(gram, jac))
+    return _transpose(xp.linalg.solve(damped_gram(jac, damping), jac))
 
 
 def osc_torque(mass_matrix, jac, jdot_qdot, bias, ydd_des, damping):
@@ -88,8 +92,7 @@ def osc_torque(mass_matrix, jac, jdot_qdot, bias, ydd_des, damping):
     `dmp.dmp_acceleration`; damping lambda of `damped_pinv`.
     """
     xp = namespace_of(mass_matrix, jac, jdot_qdot, bias, ydd_des)
-    m = jac.shape[-2]
-    gram = jac @ _transpose(jac) + (damping**2) * xp.eye(m, dtype=jac.dtype)
+    gram = damped_gram(jac, damping)
     # qdd = J+ (ydd - Jd qd) with one solve instead of an explicit inverse.
     qdd = _matvec(_transpose(jac), xp.linalg.solve(gram, (ydd_des - jdot_qdot)[..., None])[..., 0])
     return _matvec(mass_matrix, qdd) + bias
@@ -104,6 +107,7 @@ def clamp_torque(u, limits):
 
 __all__ = [
     "clamp_torque",
+    "damped_gram",
     "damped_pinv",
     "osc_torque",
     "task_state",

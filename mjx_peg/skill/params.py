@@ -50,7 +50,7 @@ import importlib
 import math
 from typing import NamedTuple
 
-from mjx_peg.skill.rotations import namespace_of
+from mjx_peg.world.rotations import namespace_of
 
 N_PARAMS = 38
 OFF_DIAGONAL_FRACTION = 0.5

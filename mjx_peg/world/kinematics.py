@@ -17,6 +17,7 @@ import functools
 import numpy as np
 
 from mjx_peg.world import constants
+from mjx_peg.world.rotations import rotvec_from_matrix, tool_down_rotation
 
 D1, A2, A3, D4, D5, D6 = 0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996  # m
 DH_D = np.array([D1, 0.0, 0.0, D4, D5, D6])
@@ -123,59 +124,6 @@ def condition_number(
     sv = np.linalg.svd(jac, compute_uv=False)
     with np.errstate(divide="ignore"):
         return sv[..., 0] / sv[..., -1]
-
-
-def tool_down_rotation(yaw: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) tool-down orientation (tool z along world -z), tool x at `yaw` about world z.
-
-    R = Rz(yaw) Rx(pi), the goal orientation of CONVENTIONS.md.
-    """
-    yaw = np.asarray(yaw, dtype=np.float64)
-    c, s, z, o = np.cos(yaw), np.sin(yaw), np.zeros_like(yaw), np.ones_like(yaw)
-    rows = [np.stack([c, s, z], -1), np.stack([s, -c, z], -1), np.stack([z, z, -o], -1)]
-    return np.stack(rows, axis=-2)
-
-
-def matrix_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation of a rotation vector (..., 3) (Rodrigues' formula)."""
-    rotvec = np.asarray(rotvec, dtype=np.float64)
-    angle = np.linalg.norm(rotvec, axis=-1)[..., None, None]
-    safe = np.where(angle > 1e-12, angle, 1.0)
-    k = np.zeros(rotvec.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -rotvec[..., 2], rotvec[..., 1], -rotvec[..., 0]
-    k = k - np.swapaxes(k, -1, -2)
-    a = np.where(angle > 1e-12, np.sin(safe) / safe, 1.0)
-    b = np.where(angle > 1e-12, (1.0 - np.cos(safe)) / safe**2, 0.5)
-    return np.eye(3) + a * k + b * (k @ k)
-
-
-def rotvec_from_matrix(rot: np.ndarray) -> np.ndarray:
-    """(..., 3) rotation vector of rot (..., 3, 3) (angle in [0, pi])."""
-    vee = 0.5 * np.stack(
-        [
-            rot[..., 2, 1] - rot[..., 1, 2],
-            rot[..., 0, 2] - rot[..., 2, 0],
-            rot[..., 1, 0] - rot[..., 0, 1],
-        ],
-        axis=-1,
-    )
-    cos = np.clip(0.5 * (np.trace(rot, axis1=-2, axis2=-1) - 1.0), -1.0, 1.0)
-    sin = np.linalg.norm(vee, axis=-1)
-    angle = np.arctan2(sin, cos)
-    small = sin < 1e-12
-    scale = np.where(small, 1.0, angle / np.where(small, 1.0, sin))
-    out = vee * scale[..., None]
-    # Near pi the skew part vanishes: take the axis from the symmetric part instead.
-    near_pi = (cos < -0.999) & np.isfinite(cos)
-    if np.any(near_pi):
-        sym = 0.5 * (rot[near_pi] + np.swapaxes(rot[near_pi], -1, -2)) + np.eye(3)
-        sym = sym - np.eye(3) * (1.0 + cos[near_pi])[..., None, None]
-        col = np.argmax(np.linalg.norm(sym, axis=-2), axis=-1)
-        axis = sym[np.arange(len(col)), :, col]
-        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-        sign = np.where(np.sum(axis * vee[near_pi], axis=-1) < 0.0, -1.0, 1.0)
-        out[near_pi] = axis * (sign * angle[near_pi])[..., None]
-    return out
 
 
 def pose_error(

@@ -80,6 +80,7 @@ from mjx_peg.world.constants import (  # noqa: E402
     SHAPES,
     TIMESTEP,
 )
+from mjx_peg.world.rotations import tool_down_rotation  # noqa: E402
 
 BOARD_MIN_HALF_WIDTH = 0.1  # m: inradius of the board's outer outline (at least)
 BOARD_MIN_WALL = 0.05  # m: wall thickness around the hole (at least)
@@ -388,6 +389,12 @@ def set_friction(model: mujoco.MjModel, mu: float) -> None:
     model.geom_friction[ids, 0] = mu
 
 
+def bias_torque(qfrc_bias, qfrc_passive, dof_adr):
+    """(..., 6) h of the arm's joints: Coriolis, centrifugal and gravity torques less the passive
+    (joint damping) ones; `ctrl = h` holds an arm at rest still. NumPy (MjData) or JAX (MJX)."""
+    return qfrc_bias[..., dof_adr] - qfrc_passive[..., dof_adr]
+
+
 def start_trial(model, data, ids, board_xy, board_yaw, grasp_error, friction, q0) -> None:
     """Set up one trial in `model`/`data`: board pose, grasp error, friction, the arm at rest at
     `q0` and held still by gravity compensation in `data.ctrl`; kinematics and sensors computed
@@ -398,7 +405,7 @@ def start_trial(model, data, ids, board_xy, board_yaw, grasp_error, friction, q0
     mujoco.mj_resetData(model, data)
     data.qpos[ids.qpos_adr] = q0
     mujoco.mj_forward(model, data)
-    data.ctrl[ids.actuator_ids] = data.qfrc_bias[ids.dof_adr] - data.qfrc_passive[ids.dof_adr]
+    data.ctrl[ids.actuator_ids] = bias_torque(data.qfrc_bias, data.qfrc_passive, ids.dof_adr)
     mujoco.mj_forward(model, data)
 
 
@@ -448,12 +455,6 @@ def scene_ids(model: mujoco.MjModel) -> SceneIds:
         table_geom=_id(model, O.mjOBJ_GEOM, "table"),
         birdseye_camera=_id(model, O.mjOBJ_CAMERA, "birdseye"),
     )
-
-
-def tool_down_rotation(yaw: float) -> np.ndarray:
-    """(3, 3) tool-down orientation Rz(yaw) Rx(pi): tool z along world -z, tool x at `yaw`."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
 
 
 def solve_site_pose(

@@ -19,6 +19,7 @@ import numpy as np
 
 from mjx_peg.world import kinematics
 from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH, PEG_LENGTH, SHAPES
+from mjx_peg.world.rotations import matrix_from_rotvec, tool_down_rotation
 
 MAX_REJECTION_FACTOR = 1000  # sample_trials gives up after drawing this many candidates per trial
 
@@ -133,7 +134,7 @@ class TaskConfig:
         yaw = np.linspace(self.board_yaw_range[0], self.board_yaw_range[1], 3)
         r, a, h, y = (g.ravel() for g in np.meshgrid(radius, angle, heights, yaw, indexing="ij"))
         pos = np.stack([r * np.cos(a), r * np.sin(a), h], axis=-1)
-        q, found = kinematics.ik_tcp_closest(pos, kinematics.tool_down_rotation(y), PEG_LENGTH)
+        q, found = kinematics.ik_tcp_closest(pos, tool_down_rotation(y), PEG_LENGTH)
         cond = np.where(found, kinematics.condition_number(np.nan_to_num(q), PEG_LENGTH), np.inf)
         where = "radius {:.3f} m, angle {:.1f} deg, tip height {:.3f} m"
         if not np.all(found):
@@ -151,13 +152,22 @@ class TaskConfig:
             )
 
     @classmethod
-    def paper(cls) -> TaskConfig:
-        """The paper's training setup: circle and square, 50 mm, errors up to 8 mm and 12 deg."""
+    def from_mm_deg(
+        cls,
+        shapes: Sequence[str],
+        size_mm: float | Sequence[float],
+        linear_mm: float,
+        angular_deg: float,
+        **others,
+    ) -> TaskConfig:
+        """A TaskConfig from the units of the CLIs: sizes and linear range in mm, angles in deg."""
+        sizes = (size_mm,) if isinstance(size_mm, int | float) else tuple(size_mm)
         return cls(
-            shapes=("circle", "square"),
-            sizes=(0.05,),
-            linear_error=0.008,
-            angular_error=math.radians(12.0),
+            shapes=tuple(shapes),
+            sizes=tuple(s / 1000.0 for s in sizes),
+            linear_error=linear_mm / 1000.0,
+            angular_error=math.radians(angular_deg),
+            **others,
         )
 
     def replace(self, **changes) -> TaskConfig:
@@ -286,7 +296,7 @@ def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[st
     direction = rng.normal(size=(n, 3))
     direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
     tilt = direction * (config.start_tilt_jitter * np.cbrt(rng.uniform(0.0, 1.0, n)))[:, None]
-    tcp0_rot = kinematics.matrix_from_rotvec(tilt) @ kinematics.tool_down_rotation(hole_est_yaw)
+    tcp0_rot = matrix_from_rotvec(tilt) @ tool_down_rotation(hole_est_yaw)
     return dict(
         shape_id=shape_ids[combo // len(config.sizes)],
         size=np.asarray(config.sizes, dtype=np.float64)[combo % len(config.sizes)],
@@ -311,9 +321,7 @@ def goal_pose(hole_est_pos: np.ndarray, hole_est_yaw: np.ndarray) -> tuple[np.nd
     """
     hole_est_pos = np.asarray(hole_est_pos, dtype=np.float64)
     height = np.full(hole_est_pos.shape[:-1] + (1,), GOAL_HEIGHT)
-    return np.concatenate([hole_est_pos, height], axis=-1), kinematics.tool_down_rotation(
-        hole_est_yaw
-    )
+    return np.concatenate([hole_est_pos, height], axis=-1), tool_down_rotation(hole_est_yaw)
 
 
 def feasible_configuration(

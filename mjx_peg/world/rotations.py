@@ -193,6 +193,23 @@ def quat_from_yaw(yaw):
     return xp.stack([xp.cos(0.5 * yaw), z, z, xp.sin(0.5 * yaw)], axis=-1)
 
 
+def tool_down_rotation(yaw):
+    """(..., 3, 3) tool-down orientation whose x axis is at `yaw` (...,) rad about world z.
+
+    R = Rz(yaw) Rx(pi): the tool z axis points along world -z (CONVENTIONS.md: the goal
+    orientation of the tcp over a hole of yaw `yaw`).
+    """
+    xp = namespace_of(yaw)
+    c, s = xp.cos(yaw), xp.sin(yaw)
+    z, o = xp.zeros_like(c), xp.ones_like(c)
+    rows = [
+        xp.stack([c, s, z], axis=-1),
+        xp.stack([s, -c, z], axis=-1),
+        xp.stack([z, z, -o], axis=-1),
+    ]
+    return xp.stack(rows, axis=-2)
+
+
 __all__ = [
     "matrix_from_quat",
     "matrix_from_rotvec",
@@ -205,4 +222,5 @@ __all__ = [
     "rotvec_from_matrix",
     "rotvec_from_quat",
     "skew",
+    "tool_down_rotation",
 ]
