@@ -264,7 +264,7 @@ class _Sims:
         bias = scene.bias_torque(rows(self.qfrc_bias), rows(self.qfrc_passive), self.ids.dof_adr)
         return _Measured(
             rows(self.time),
-            rows(self.qvel),
+            np.ascontiguousarray(rows(self.qvel)),  # a view of the state rows when all
             take(rows(self.site_xpos), self.sites, axis=1),
             take(rows(self.site_xmat), self.sites[[0, 2]], axis=1).reshape(-1, 2, 3, 3),
             take(rows(self.sensordata), self.ft, axis=1),
@@ -547,7 +547,7 @@ class _Lane:
         if observer is not None:
             self.tip_pos, self.tcp_pos, self.measured = tip_pos, tcp_pos, m
             observer(self, np.arange(n), wrench)
-        qvel = np.ascontiguousarray(m.qvel)
+        qvel = m.qvel
         meas = Measurement(
             t=t,
             tcp_pos=np.ascontiguousarray(tcp_pos),
