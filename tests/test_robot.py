@@ -64,6 +64,21 @@ def test_simulated_arm_runs_the_engines_trial():
                                        atol=1e-12, rtol=0)  # fmt: skip
 
 
+def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
+    """A failure that settles (the baseline chattering on the board top) stops the runtime with
+    "settled" at the control period at which the engine ends the trial."""
+    task = TaskConfig(shapes=("circle",), sizes=(0.05,), linear_error=0.002,
+                      angular_error=np.deg2rad(3.0))  # fmt: skip
+    specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params()
+    config = TrialConfig(time_limit_s=10.0)
+    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
+    assert result.settled[0], result.summary()
+    arm = SimArm(specs, 0)
+    run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
+    assert run.stopped == "settled" and not run.success
+    assert abs(run.commands - result.steps[0]) <= config.settle_steps // 10
+
+
 def test_command_rate_holds_the_torque_between_commands():
     specs, vec = _specs(n=1), baseline_params()
     arm = SimArm(specs, 0, command_steps=4)

@@ -28,7 +28,10 @@ from mjx_peg.engines.trial import (
     control_config,
     destination,
     fitted_basis,
+    is_settled,
     is_success,
+    settle_start,
+    settle_update,
     trial_reward,
 )
 from mjx_peg.skill.control_step import (
@@ -52,6 +55,7 @@ _OUTCOMES = {
     "peak_force": "peak_force",
     "tip": "tip",
     "start_distance": "start_distance",
+    "settled": "settled",
 }
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
@@ -173,6 +177,8 @@ class _Program:
             ended=jnp.zeros((), bool),
             success=jnp.zeros((), bool),
             unstable=jnp.zeros((), bool),
+            settled=jnp.zeros((), bool),
+            settle=settle_start((), jnp),
             tip=tip,
         )
         return d, slot
@@ -190,7 +196,8 @@ class _Program:
         success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height)
         finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))
         unstable = ~finite | jnp.any(jnp.abs(d.qvel) > cfg.max_joint_speed)
-        ended_now = ~slot["ended"] & (success | unstable | (step >= cfg.max_steps))
+        settled = is_settled(slot["settle"], cfg) & ~success & ~unstable
+        ended_now = ~slot["ended"] & (success | unstable | settled | (step >= cfg.max_steps))
         live = ~(slot["ended"] | ended_now)
         meas = Measurement(
             t=step * cfg.timestep,
@@ -205,6 +212,7 @@ class _Program:
         )
         u = skill_torque(self.control, skill, self.basis, meas)
         u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
+        d_qvel = d.qvel  # this period's, for the settle test
         d = step2(m, d.replace(ctrl=u))
         force_mag = jnp.where(live, jnp.linalg.norm(wrench[:3]), 0.0)
         slot = dict(
@@ -214,8 +222,11 @@ class _Program:
             ended=slot["ended"] | ended_now,
             success=jnp.where(ended_now, success & ~unstable, slot["success"]),
             unstable=jnp.where(ended_now, unstable, slot["unstable"]),
+            settled=jnp.where(ended_now, settled, slot["settled"]),
             tip=jnp.where(live | ended_now, tip, slot["tip"]),
         )
+        if cfg.end_settled:
+            slot["settle"] = settle_update(slot["settle"], step, d_qvel, tcp_pos, wrench, cfg)
         return d, slot
 
     # --- the batch ----------------------------------------------------------------------------
@@ -238,6 +249,7 @@ class _Program:
         out = dict(
             success=jnp.zeros(n, bool),
             unstable=jnp.zeros(n, bool),
+            settled=jnp.zeros(n, bool),
             steps=jnp.zeros(n, jnp.int32),
             peak_force=jnp.zeros(n),
             tip=jnp.zeros((n, 3)),
@@ -303,6 +315,7 @@ def run_trials(
     out_arrays = {
         "success": np.zeros(n, bool),
         "unstable": np.zeros(n, bool),
+        "settled": np.zeros(n, bool),
         "steps": np.zeros(n, np.int64),
         "peak_force": np.zeros(n),
         "final_tip_pos": np.zeros((n, 3)),
@@ -316,6 +329,7 @@ def run_trials(
         out = jax.device_get(program.run(inputs))
         out_arrays["success"][rows] = out["success"]
         out_arrays["unstable"][rows] = out["unstable"]
+        out_arrays["settled"][rows] = out["settled"]
         out_arrays["steps"][rows] = out["steps"]
         out_arrays["peak_force"][rows] = out["peak_force"]
         out_arrays["final_tip_pos"][rows] = out["tip"]
@@ -338,4 +352,5 @@ def run_trials(
         reward=np.asarray(reward),
         unstable=out_arrays["unstable"],
         steps=out_arrays["steps"],
+        settled=out_arrays["settled"],
     )

@@ -185,8 +185,7 @@ def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: 
         trace["t"].append(step * config.timestep)
         trace["tip"].append(worker.tip_pos[0].copy())
         trace["wrench"].append(wrench[0].copy())
-        _, d, _ = worker.current[0]
-        last[:] = [(step * config.timestep, d.qpos.copy())]
+        last[:] = [(step * config.timestep, worker.qpos[0])]
         if frames and step % every == 0:
             snapshots.append(last[0])
 

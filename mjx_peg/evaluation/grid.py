@@ -69,7 +69,11 @@ CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
 _MAX_ERROR = {"linear_mm": (0.0, 50.0), "angular_deg": (0.0, 45.0)}  # TaskConfig's, mm and deg
-_RESULT_FIELDS = ("success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward")
+_RESULT_FIELDS = (
+    "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled"
+)  # fmt: skip
+# Evaluations from before early ending ran every failure to the time limit.
+_OLD_DEFAULTS = {"full_time_limit": True}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,6 +90,9 @@ class EvalConfig:
     time_limit_s: float = 60.0  # per trial, the paper's
     seed: int = 0
     engine: str = "mujoco"  # resolved: mujoco or mjx
+    # True: every failure runs to the time limit (the paper's protocol); False: a failure that
+    # has settled ends early (TrialConfig.end_settled), with the same outcome
+    full_time_limit: bool = False
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -112,11 +119,16 @@ class EvalConfig:
             raise ValueError(f"size must be a positive number of mm, got {self.size_mm!r}")
         if self.engine not in ("mujoco", "mjx"):
             raise ValueError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
-        TrialConfig(time_limit_s=self.time_limit_s)  # validates the time limit
+        if not isinstance(self.full_time_limit, bool):
+            raise ValueError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
+        self.trial_config()  # validates the time limit
         # Validates shapes, size and the largest errors (reach of the workspace) once, up front.
         task_config(self, self.shapes[0], self.linear_mm[-1], self.angular_deg[-1])
         for shape in self.shapes[1:]:
             task_config(self, shape, 0.0, 0.0)
+
+    def trial_config(self) -> TrialConfig:
+        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
 
     @property
     def ranges(self) -> list[tuple[float, float]]:
@@ -268,6 +280,7 @@ def prepare_out_dir(
         saved = _saved_config(path)
         if saved is None:
             raise ValueError(f"{path} is not an evaluation config; use another --out")
+        saved = {**_OLD_DEFAULTS, **saved}
         diff = [k for k in wanted if saved.get(k) != wanted[k]]
         if force:
             moved = cli.move_aside(out)
@@ -307,7 +320,7 @@ def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
         doc = json.loads(path.read_text())
         if doc.get("schema") != SCHEMA:
             raise ValueError
-        config = EvalConfig(**doc["config"])
+        config = EvalConfig(**{**_OLD_DEFAULTS, **doc["config"]})
     except (OSError, ValueError, KeyError, TypeError):
         raise ValueError(f"{path} is not an mjx-peg evaluation config") from None
     return config, doc.get("policy_dir")
@@ -325,6 +338,8 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
+        if "success" in arrays:  # saved before early ending existed: no trial settled
+            arrays.setdefault("settled", np.zeros(arrays["success"].shape, bool))
         missing = [k for k in _RESULT_FIELDS if k not in arrays]
         if missing:
             raise ValueError(f"no {', '.join(missing)}")
@@ -359,7 +374,7 @@ def run_evaluation(
     done = {i for i in range(n_ranges) if _range_path(out, i).is_file()}
     per_chunk = max(1, chunk_trials // config.trials)
     chunks = [range(s, min(s + per_chunk, n_ranges)) for s in range(0, n_ranges, per_chunk)]
-    trial_config = TrialConfig(time_limit_s=config.time_limit_s)
+    trial_config = config.trial_config()
     ran = 0
     with tqdm(
         total=n_ranges * config.trials,
@@ -432,10 +447,11 @@ def load_evaluation_grid(eval_dir) -> es.GridTable:
 
 def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str) -> list[str]:
     per_shape = {s: [0, 0] for s in config.shapes}
-    steps = 0
+    steps = settled = 0
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         steps += int(arrays["steps"].sum())
+        settled += int(arrays["settled"].sum())
         for s in config.shapes:
             mine = arrays["shape_id"] == SHAPES.index(s)
             per_shape[s][0] += int(arrays["success"][mine].sum())
@@ -450,7 +466,12 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
         f"grid: {config.grid}, {len(lin)} linear x {len(ang)} angular = {len(config.ranges)} "
         f"ranges; linear +-{lin[0]:g}..{lin[-1]:g} mm, angular +-{ang[0]:g}..{ang[-1]:g} deg",
         f"shapes: {', '.join(config.shapes)} (trials split evenly); size S = {config.size_mm:g} mm",
-        f"trials per range: {config.trials}; time limit {config.time_limit_s:g} s per trial",
+        f"trials per range: {config.trials}; time limit {config.time_limit_s:g} s per trial; "
+        + (
+            "every failure ran to the time limit (--full-time-limit)"
+            if config.full_time_limit
+            else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
+        ),
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
@@ -562,6 +583,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial, the paper's 60"
     )
+    p.add_argument(
+        "--full-time-limit",
+        action="store_true",
+        help="run every failure to the time limit, the paper's protocol (default: a failure "
+        "that has settled, at rest or repeating the same motion, ends early; same outcome)",
+    )
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
@@ -636,6 +663,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         shapes=shapes,
         size_mm=args.size,
         time_limit_s=args.time_limit,
+        full_time_limit=args.full_time_limit,
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )

@@ -51,8 +51,12 @@ def parser() -> argparse.ArgumentParser:
         "--checkpoint-every", type=cli.number(0, 86400, "s"), default=60.0, help="default 60"
     )
     p.add_argument(
-        "--workers", type=cli.WORKERS, help="CPU engine worker processes (default: all cores)"
+        "--full-time-limit",
+        action="store_true",
+        help="run every failed trial to the time limit (default: a failure that has settled, "
+        "at rest or repeating the same motion, ends early with the same outcome)",
     )
+    p.add_argument("--workers", type=cli.WORKERS, help="CPU engine threads (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -75,6 +79,7 @@ def resolve_config(args):
         "trials": args.trials,
         "time_limit_s": args.time_limit,
         "init_from": None if args.init_from is None else str(args.init_from),
+        "full_time_limit": args.full_time_limit or None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:

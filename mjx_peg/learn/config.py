@@ -53,6 +53,9 @@ class TrainConfig:
     seed: int = 0
     engine: str = "mujoco"
     init_from: str | None = None  # run dir whose policy and value networks start this run
+    # True: every failed trial runs to the time limit; False: a failure that has settled ends
+    # early with the same outcome (TrialConfig.end_settled)
+    full_time_limit: bool = False
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -105,7 +108,7 @@ class TrainConfig:
         )
 
     def trial(self) -> TrialConfig:
-        return TrialConfig(time_limit_s=self.time_limit_s)
+        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
 
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)

@@ -30,6 +30,7 @@ METRICS_COLUMNS = (
     "success_rate",
     "time_to_complete_s",
     "unstable_rate",
+    "settled_rate",
     "wall_s",
     "trials_per_s",
     "policy_loss",
@@ -139,6 +140,10 @@ class RunDir:
                 with open(path, newline="") as f:
                     rows = list(csv.reader(f))
                 header, body = rows[0], rows[1:]
+                if path == self.metrics_path and "settled_rate" not in header:  # an older run
+                    at = header.index("unstable_rate") + 1
+                    header.insert(at, "settled_rate")
+                    body = [r[:at] + [""] + r[at:] for r in body]
                 i = header.index(column)
                 limit = trials if column == "trials" else trials - 1
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]

@@ -237,6 +237,7 @@ def train(
                     f"{succ.mean():.4f}",
                     f"{times.mean():.4f}" if times.size else "",
                     f"{(trials['unstable'] > 0.5).mean():.4f}",
+                    f"{(trials['settled'] > 0.5).mean():.4f}",
                     f"{wall:.2f}",
                     f"{config.num_envs / (now - t0):.2f}",
                     f"{float(metrics['policy_loss']):.5g}",

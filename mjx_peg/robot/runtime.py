@@ -8,7 +8,9 @@ the tare and the DMP's start taken at the first reading, then `control_step.skil
 reading. It stops the skill (`SafetyStop`) on a non-finite measurement or torque, a joint faster
 than `TrialConfig.max_joint_speed` (twice the UR5e's 180 deg/s, where the real arm would
 protective-stop; the engines count such a trial as failed, `unstable`) or a clock that runs
-backwards. The math runs on arrays with a leading batch dimension of 1, the engines' code path:
+backwards, and `run_skill` stops a skill that has settled (`TrialConfig.end_settled`: at rest or
+repeating the same motion, it cannot insert any more; a failure, as the engines end it, stopped
+"settled"). The math runs on arrays with a leading batch dimension of 1, the engines' code path:
 on the simulated arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and
 ends as it does (the wrench can differ from the engine's in the last bit, which contact can
 amplify; tests/test_robot.py).
@@ -27,6 +29,9 @@ from mjx_peg.engines.trial import (
     as_controller_params,
     control_config,
     fitted_basis,
+    is_settled,
+    settle_start,
+    settle_update,
 )
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import Policy, load_policy
@@ -111,6 +116,8 @@ class SkillRuntime:
         self.tare = np.zeros((1, 6))
         self.t0 = self.last_t = 0.0
         self.wrench = np.zeros(6)  # the last wrench the compliance saw (goal frame)
+        self.settle = settle_start((1,))
+        self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
 
     def start(self, state: ArmState) -> None:
         """Tare the F/T reading, take the DMP's start y0 from the tcp pose, start the clock."""
@@ -167,7 +174,18 @@ class SkillRuntime:
         if not np.all(np.isfinite(u)):
             raise SafetyStop("the controller returned a non-finite torque")
         self.wrench = wrench[0]
+        cfg = self.config
+        if cfg.end_settled:  # the engines' settle test, on what the arm measures
+            step = np.array([round(self.elapsed(state) / cfg.timestep)])
+            self.settle = settle_update(self.settle, step, b(state.qd), b(state.tcp_pos), wrench,
+                                        cfg, self.period_steps)  # fmt: skip
         return u
+
+    @property
+    def settled(self) -> bool:
+        """The skill has settled (`TrialConfig.end_settled`): at rest or repeating the same
+        motion, it cannot insert any more; `run_skill` stops it."""
+        return bool(is_settled(self.settle, self.config)[0])
 
     def inserted(self, state: ArmState) -> bool:
         """The tcp (nominal tip) is inside the estimated hole's footprint near the table."""
@@ -181,7 +199,7 @@ class SkillRun:
 
     success: bool
     time_s: float  # at success, else when it stopped
-    stopped: str  # "" unless a SafetyStop ended it
+    stopped: str  # "" unless a SafetyStop ended it, or "settled" (TrialConfig.end_settled)
     log: dict[str, np.ndarray]  # t (s), tcp_pos (m), wrench (goal frame), torque (N m)
 
     @property
@@ -196,13 +214,15 @@ def run_skill(
     done: Callable[[ArmState], bool] | None = None,
 ) -> SkillRun:
     """Drive `arm` with `runtime` until `done(state)` (default: `runtime.inserted`) or the time
-    limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm."""
+    limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm, and so
+    does a skill that has settled (`SkillRuntime.settled`: stopped "settled", a failure)."""
     limit = runtime.config.time_limit_s if time_limit_s is None else time_limit_s
     if not (math.isfinite(limit) and limit > 0):
         raise ValueError(f"the time limit must be a positive number of seconds, got {limit!r}")
     done = done or runtime.inserted
     log = {"t": [], "tcp_pos": [], "wrench": [], "torque": []}
     stopped, success = "", False
+    runtime.period_steps = max(1, round(arm.period / runtime.config.timestep))
     state = arm.read()
     try:
         runtime.start(state)
@@ -213,6 +233,10 @@ def run_skill(
                 success = True
                 break
             if elapsed >= limit - 1e-3 * arm.period:
+                break
+            if runtime.settled:
+                arm.hold()
+                stopped = "settled"
                 break
             u = runtime._command(state)  # checked above
             arm.send(u)
