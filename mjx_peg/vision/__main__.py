@@ -1,0 +1,7 @@
+"""`python -m mjx_peg.vision`: see mjx_peg/vision/cli.py."""
+
+import sys
+
+from mjx_peg.vision.cli import main
+
+sys.exit(main())
