@@ -117,9 +117,10 @@ def gallery_png(items, path: Path, count: int = 12) -> Path:
     for ax, (png, label) in zip(np.ravel(axes), picks, strict=False):
         ax.imshow(read_png(png)[::2, ::2])
         v = label["view"]
+        n = len(v["distractors"])
         ax.set_title(
             f"{label['board']['shape']} {1000 * label['board']['size']:g} mm, "
-            f"{v['table']['texture']} table, {len(v['distractors'])} distractors",
+            f"{v['table']['texture']} table, {n} distractor{'' if n == 1 else 's'}",
             fontsize=7,
         )
     fig.tight_layout()
