@@ -4,10 +4,12 @@ Two small CNNs, described by a JSON-able architecture and run here from a flat d
 (`model.npz`); `nets.py` builds the same networks in Flax for training, with the same parameter
 names, and tests/test_vision.py checks that both agree.
 
-- detector (coarse view, (B, 128, 216, 3) -> (B, 16, 27, 3)): 3x3 convolutions (ReLU; stride 2
-  three times), then a 1x1 head per 48 mm cell: [board-centre logit, row offset, column offset]
-  (offsets through a sigmoid, in cells). A keypoint heatmap: translation-equivariant, so it finds
-  the board anywhere in the workspace and learns "board with a hole", not "bright blob".
+- detector (coarse view, (B, 128, 216, 3) -> (B, 16, 27, 3)): six 3x3 convolutions (ReLU; stride
+  2 three times; receptive field 55 px = 330 mm, a whole board), then a 1x1 head per 48 mm
+  cell: [board-centre logit, row offset, column offset] (offsets through a sigmoid, in cells).
+  A keypoint heatmap (softmax over the cells, as YOLO/CenterNet detect): translation-equivariant,
+  so it finds the board anywhere in the workspace and learns "board with a hole", not "bright
+  blob"; direct regression of x, y from the whole workspace would have to learn each position.
 - regressor (fine view, (B, 112, 112, 3) -> (B, 12)): 3x3 convolutions down to 7 x 7, a dense
   layer, and direct regression: [dx, dy] (the hole centre from the view's centre, world axes,
   in units of OFFSET_SCALE), [cos 4 yaw, sin 4 yaw, cos 3 yaw, sin 3 yaw] (the yaw encoded at the
@@ -25,7 +27,7 @@ FINE_OUTPUTS = 12
 DETECTOR_HEAD = 3
 
 DEFAULT_ARCH = {
-    "detector": {"convs": [[16, 2], [24, 1], [32, 2], [32, 1], [48, 2], [48, 1], [48, 1]]},
+    "detector": {"convs": [[12, 2], [24, 2], [24, 1], [32, 2], [32, 1], [32, 1]]},
     "regressor": {
         "convs": [[16, 2], [24, 1], [32, 2], [32, 1], [48, 2], [48, 1], [64, 2]],
         "dense": [128],

@@ -424,6 +424,7 @@ def train(
             if done % 25 == 0 or done == total:
                 vals = [float(loss)] + [float(v) for v in aux.values()]
                 writer.writerow([done, stage, *(f"{v:.5g}" for v in vals)])
+                f.flush()
                 bar.set_postfix(stage=stage, loss=f"{vals[0]:.3f}")
             bar.update(1)
             if done % config.checkpoint_every == 0 or done in (config.detector_steps, total):
