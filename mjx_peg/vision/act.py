@@ -29,14 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import observation
-from mjx_peg.task import SHAPES, TaskConfig, TrialSpec, feasible_configuration, sample_trials
-from mjx_peg.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import Renderer, make_label
 from mjx_peg.vision.localizer import Localizer
 from mjx_peg.vision.metrics import wrapped_yaw_error
 from mjx_peg.vision.randomize import sample_view
+from mjx_peg.world import kinematics
+from mjx_peg.world.constants import SHAPES
+from mjx_peg.world.rotations import tool_down_rotation
+from mjx_peg.world.task import TaskConfig, TrialSpec, feasible_configuration, sample_trials
 
 PAPER_SUCCESS = 0.92  # section 6.6: 92 % over 200 trials for both circle and square
 LOC_MM, LOC_DEG = 8.0, 12.0  # the sampled localization error's ranges
@@ -78,9 +81,7 @@ def with_estimates(specs: TrialSpec, est_pos: np.ndarray, est_yaw: np.ndarray):
     )
     tcp0 = arrays["tcp0_pos"].copy()
     tcp0[:, :2] = arrays["hole_est_pos"]
-    from mjx_peg import kinematics
-
-    rot = kinematics.tool_down_rotation(arrays["hole_est_yaw"])
+    rot = tool_down_rotation(arrays["hole_est_yaw"])
     q0, ok = feasible_configuration(tcp0, rot, TaskConfig().max_condition)
     arrays["tcp0_pos"], arrays["tcp0_rot"] = tcp0, rot
     arrays["q0"] = np.where(ok[:, None], kinematics.wrap_angle(np.nan_to_num(q0)), specs.q0)
@@ -122,10 +123,10 @@ def localize_trials(
 def controller_vectors(policy: str, specs: TrialSpec, shapes: list[str], sizes: np.ndarray):
     """(B, 38) for trials whose policy observation uses the given shapes and sizes."""
     if policy == "baseline":
-        from mjx_peg.baseline import baseline_params
+        from mjx_peg.skill.baseline import baseline_params
 
         return np.tile(baseline_params(), (len(specs), 1))
-    from mjx_peg.policy import load_policy
+    from mjx_peg.policy.export import load_policy
 
     obs = observation.observe(
         np.array([SHAPES.index(s) for s in shapes]),

@@ -17,19 +17,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
 from pathlib import Path
+
+from mjx_peg import cli
 
 PROG = "python -m mjx_peg.vision"
 DEFAULT_MODEL = "runs/vision/model"
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with errors on one stderr line (no usage block) and exit status 2."""
-
-    def error(self, message: str):
-        self.exit(2, f"{PROG}: error: {message}\n")
 
 
 def _csv(text: str) -> tuple[str, ...]:
@@ -37,8 +30,8 @@ def _csv(text: str) -> tuple[str, ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description="Localize the hole from a bird's-eye image (paper 6.6).")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = cli.Parser(prog=PROG, description="Localize the hole from a bird's-eye image (paper 6.6).")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=cli.Parser)
 
     r = sub.add_parser("render", help="render a randomized, labelled split (PNG + JSON)")
     r.add_argument("--out", required=True, help="split directory (resumed if it exists)")
@@ -204,7 +197,6 @@ def _figures(args) -> str:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    os.environ.setdefault("MUJOCO_GL", "egl")
     handlers = {
         "render": _render,
         "train": _train,
@@ -215,12 +207,9 @@ def main(argv=None) -> int:
     }
     try:
         print(handlers[args.command](args))
-    except ValueError as exc:  # CalibrationError, ModelError and bad options are ValueErrors
-        print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except cli.USER_ERRORS as exc:  # CalibrationError, ModelError: ValueErrors
+        return cli.fail(f"{PROG} {args.command}", exc)
     except KeyboardInterrupt:
-        print(
-            f"{PROG} {args.command}: interrupted; rerun the same command to resume", file=sys.stderr
-        )
-        return 130
+        cli.fail(f"{PROG} {args.command}", "interrupted; rerun the same command to resume")
+        return cli.EXIT_INTERRUPTED
     return 0

@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import scene
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.randomize import (
     CONDITIONS,
@@ -40,15 +39,15 @@ from mjx_peg.vision.randomize import (
     sample_board,
     sample_view,
 )
+from mjx_peg.world import constants
 
 SCHEMA = "mjx-peg-vision-split"
-SYMMETRY = {"circle": 0, "square": 4, "triangle": 3}  # as observation.SYMMETRY
 MANIFEST = "manifest.json"
 
 
 def yaw_period(shape: str) -> float:
     """The shape's rotational symmetry period (rad); inf for the circle."""
-    n = SYMMETRY[shape]
+    n = constants.SYMMETRY[constants.SHAPES.index(shape)]
     return 2.0 * math.pi / n if n else math.inf
 
 
@@ -104,7 +103,7 @@ def make_label(board: dict, view: dict) -> dict:
     """The JSON label of one image (see the module docstring)."""
     true = CameraCalibration.from_json(view["camera_true"])
     x, y = board["x"], board["y"]
-    top = true.project(np.array([x, y, scene.HOLE_DEPTH]))
+    top = true.project(np.array([x, y, constants.HOLE_DEPTH]))
     table = true.project(np.array([x, y, 0.0]))
     size_mm = round(board["size"] * 1000.0, 6)
     return {

@@ -10,36 +10,36 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import scene
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
 from mjx_peg.vision.localizer import Localizer
+from mjx_peg.world import constants, scene
 
 
 def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.ndarray:
     """(n + 1, 3) closed outline of the hole's rim at the board top, world frame."""
-    n = scene.HOLE_SIDES[shape]
+    n = constants.HOLE_SIDES[shape]
     r = scene.hole_inradius(shape, size) / math.cos(math.pi / n)  # circumradius
     a = scene.hole_normal_angles(shape) + math.pi / n + yaw
     a = np.append(a, a[0])
     return np.stack(
-        [x + r * np.cos(a), y + r * np.sin(a), np.full(a.shape, scene.HOLE_DEPTH)], axis=-1
+        [x + r * np.cos(a), y + r * np.sin(a), np.full(a.shape, constants.HOLE_DEPTH)], axis=-1
     )
 
 
 def _draw(ax, calib: CameraCalibration, shape, size, x, y, yaw, color, label):
     uv = calib.project(hole_outline(shape, size, x, y, yaw))
     ax.plot(uv[:, 0], uv[:, 1], color=color, lw=1.4, label=label)
-    c = calib.project(np.array([x, y, scene.HOLE_DEPTH]))
+    c = calib.project(np.array([x, y, constants.HOLE_DEPTH]))
     ax.plot([c[0]], [c[1]], "+", color=color, ms=10, mew=1.6)
     ref = calib.project(
         np.array(
             [
-                [x, y, scene.HOLE_DEPTH],
+                [x, y, constants.HOLE_DEPTH],
                 [
                     x + 0.8 * size * math.cos(yaw - math.pi / 2),
                     y + 0.8 * size * math.sin(yaw - math.pi / 2),
-                    scene.HOLE_DEPTH,
+                    constants.HOLE_DEPTH,
                 ],
             ]
         )

@@ -26,14 +26,13 @@ import numpy as np
 from mjx_peg.robot.runtime import HoleEstimate
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
+from mjx_peg.vision.forward import SIZES_MM
 from mjx_peg.vision.views import ViewConfig, coarse_view, fine_view, standardize
+from mjx_peg.world.constants import SHAPES, SYMMETRY
 
 SCHEMA = "mjx-peg-vision-localizer"
 SCHEMA_VERSION = 1
 MODEL_NPZ, MODEL_JSON = "model.npz", "model.json"
-SHAPES = ("circle", "square", "triangle")
-SYMMETRY = (0, 4, 3)
-SIZES_MM = (25.0, 50.0, 60.0)
 YAW_CENTRE = math.pi / 4  # the centre of TaskConfig.board_yaw_range
 
 

@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import scene
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_config, split_items, yaw_period
-from mjx_peg.vision.localizer import SHAPES, SIZES_MM, Localizer
+from mjx_peg.vision.localizer import Localizer
+from mjx_peg.world import constants
+from mjx_peg.world.constants import SHAPES
 
 PERCENTILES = (50, 95, 99)
 PAPER_BAR = (8.0, 8.0)  # mm, deg: the paper's YOLO-like model's maximum error
@@ -53,7 +54,7 @@ def evaluate_items(localizer: Localizer, items, progress: bool = True) -> list[d
         result = localizer.localize(image, calib)
         latency = time.perf_counter() - t0
         b, e = label["board"], result.estimate
-        floor = calib.unproject_to_plane(np.asarray(label["hole_px"]), scene.HOLE_DEPTH)
+        floor = calib.unproject_to_plane(np.asarray(label["hole_px"]), constants.HOLE_DEPTH)
         rows.append(
             {
                 "image": Path(png).name,
@@ -172,6 +173,3 @@ def evaluate_to(localizer: Localizer, split_dir, out_dir, progress: bool = True)
         f"condition {config.condition}, {config.width}x{config.height})"
     )
     return write_report(rows, out_dir, title)
-
-
-__all__ = ["SIZES_MM", "evaluate_split", "evaluate_to", "summarize", "wrapped_yaw_error"]

@@ -38,15 +38,19 @@ import functools
 import math
 import xml.etree.ElementTree as ET
 
-import mujoco
-import numpy as np
+from mjx_peg.world import gl
 
-from mjx_peg import scene
-from mjx_peg.task import TaskConfig
-from mjx_peg.vision.camera import CameraCalibration
+gl.choose_backend()  # before MuJoCo is first imported
 
-SHAPES = tuple(scene.SHAPES)  # class order of the localizer's shape head
-SIZES_MM = (25.0, 50.0, 60.0)  # the paper's sizes: class order of the size head
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from mjx_peg.vision.camera import CameraCalibration  # noqa: E402
+from mjx_peg.vision.forward import SIZES_MM  # noqa: E402
+from mjx_peg.world import constants, scene  # noqa: E402
+from mjx_peg.world.constants import SHAPES  # noqa: E402
+from mjx_peg.world.task import TaskConfig  # noqa: E402
+
 CONDITIONS = ("nominal", "dark", "camera-off")
 CAMERA = "birdseye"
 TABLE_TEXTURES = ("checker", "speckle", "gradient", "plain")
@@ -264,7 +268,7 @@ def sample_view(
         kind, k = kinds[i]
         if kind == "slab":
             half = rng.uniform(0.08, 0.12)
-            size = [half, half * rng.uniform(0.8, 1.2), scene.HOLE_DEPTH / 2]
+            size = [half, half * rng.uniform(0.8, 1.2), constants.HOLE_DEPTH / 2]
         elif kind == "box":
             size = list(rng.uniform(0.008, 0.06, 3))
         elif kind == "sphere":

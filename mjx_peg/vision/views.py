@@ -21,8 +21,8 @@ import dataclasses
 
 import numpy as np
 
-from mjx_peg import scene
 from mjx_peg.vision.camera import CameraCalibration, rectify
+from mjx_peg.world import constants
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,7 +36,7 @@ class ViewConfig:
     coarse_stride: int = 8  # the detector's output cell = 8 x 8 view pixels (48 mm)
     fine_size: int = 112
     fine_res: float = 0.00125
-    plane_z: float = float(scene.HOLE_DEPTH)
+    plane_z: float = float(constants.HOLE_DEPTH)
 
     @classmethod
     def from_json(cls, doc: dict) -> ViewConfig:
