@@ -56,7 +56,7 @@ class TrialConfig:
     settle_after_s: float = 2.0  # the phase is then exp(-alpha_s 2 / tau) = 3e-4 at the defaults
     settle_window_s: float = 1.0
     settle_windows: int = 1
-    settle_tip_m: float = 5e-5
+    settle_tip_m: float = 1e-5
     settle_force_n: float = 0.5
     settle_moment_nm: float = 0.05
     settle_joint_speed: float = 0.05  # rad/s
