@@ -34,6 +34,19 @@ SCHEMA = "mjx-peg-vision-localizer"
 SCHEMA_VERSION = 1
 MODEL_NPZ, MODEL_JSON = "model.npz", "model.json"
 YAW_CENTRE = math.pi / 4  # the centre of TaskConfig.board_yaw_range
+WORKSPACE_MARGIN = 0.06  # m: a detector cell's half-diagonal (34 mm) and 26 mm more
+
+
+def default_workspace() -> dict:
+    """The task's board workspace (TaskConfig's defaults) and the detector's margin around it."""
+    from mjx_peg.world.task import TaskConfig
+
+    task = TaskConfig()
+    return {
+        "radius_m": list(task.workspace_radius),
+        "angle_rad": list(task.workspace_angle),
+        "margin_m": WORKSPACE_MARGIN,
+    }
 
 
 class ModelError(ValueError):
@@ -86,6 +99,7 @@ class Localizer:
         self.arch = config["arch"]
         self.views = ViewConfig.from_json(config["views"])
         self.params = {k: np.asarray(v, dtype=np.float32) for k, v in params.items()}
+        self._mask = None
 
     @classmethod
     def load(cls, model_dir: str | os.PathLike) -> Localizer:
@@ -113,13 +127,45 @@ class Localizer:
 
     # --- the two stages -----------------------------------------------------------------------
 
+    def workspace_mask(self) -> np.ndarray:
+        """(h, w) bool: detector cells whose centre lies within `margin` of the workspace sector
+        (the task's annular sector of board positions; the margin covers a cell's half-diagonal).
+        Boards are never placed elsewhere, so the detector may not answer elsewhere."""
+        if self._mask is None:
+            ws = self.config.get("workspace") or default_workspace()
+            h, w = self.views.coarse_cells
+            rc = np.stack(np.meshgrid(np.arange(h), np.arange(w), indexing="ij"), -1) + 0.5
+            xy = self.views.coarse_to_world(rc * self.views.coarse_stride)
+            r = np.hypot(xy[..., 0], xy[..., 1])
+            angle = np.arctan2(xy[..., 1], xy[..., 0])
+            m = ws["margin_m"]
+            (r0, r1), (a0, a1) = ws["radius_m"], ws["angle_rad"]
+            beyond = np.maximum(a0 - angle, angle - a1) * np.maximum(r, 1e-9)  # arc length
+            self._mask = (r >= r0 - m) & (r <= r1 + m) & (beyond <= m)
+        return self._mask
+
     def detect(self, image: np.ndarray, calib: CameraCalibration) -> tuple[np.ndarray, float]:
-        """((2,) world x, y of the hole by the detector, its cell probability)."""
-        view = standardize(coarse_view(image, calib, self.views))[None]
-        out = forward.detector_forward(self.arch["detector"], self.params, view)[0]
-        probs = forward.softmax(out[..., 0].ravel()).reshape(out.shape[:2])
+        """((2,) world x, y of the hole by the detector, its cell probability).
+
+        The detector runs on the workspace view and on its left-right mirror image (test-time
+        augmentation: the same view, flipped back); the cell probabilities and offsets of both
+        are averaged, and cells outside the workspace are ruled out.
+        """
+        view = standardize(coarse_view(image, calib, self.views))
+        both = np.stack([view, view[:, ::-1]])
+        out = forward.detector_forward(self.arch["detector"], self.params, both)
+        mirrored = out[1, :, ::-1].copy()
+        mirrored[..., 2] = -mirrored[
+            ..., 2
+        ]  # column offset o -> 1 - o: sigmoid(-x) = 1 - sigmoid(x)
+        mask = self.workspace_mask().ravel()
+        probs = 0.0
+        for o in (out[0], mirrored):
+            logits = np.where(mask, o[..., 0].ravel(), -np.inf)
+            probs = probs + 0.5 * forward.softmax(logits)
+        probs = probs.reshape(out.shape[1:3])
         r, c = np.unravel_index(int(np.argmax(probs)), probs.shape)
-        off = forward.sigmoid(out[r, c, 1:])
+        off = 0.5 * (forward.sigmoid(out[0, r, c, 1:]) + forward.sigmoid(mirrored[r, c, 1:]))
         rc = (np.array([r, c]) + off) * self.views.coarse_stride
         return self.views.coarse_to_world(rc), float(probs[r, c])
 

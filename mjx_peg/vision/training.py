@@ -32,7 +32,7 @@ import numpy as np
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
-from mjx_peg.vision.localizer import SCHEMA, SCHEMA_VERSION, Localizer
+from mjx_peg.vision.localizer import SCHEMA, SCHEMA_VERSION, Localizer, default_workspace
 from mjx_peg.vision.views import ViewConfig, coarse_view, fine_view
 
 CONFIG_FILE, METRICS_FILE, CHECKPOINTS, CACHE = (
@@ -343,7 +343,7 @@ def train(
     views = views or ViewConfig()
     out = Path(out_dir)
     prepare_out(out, config)
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), time.process_time()
     data = cached_views(
         data_dir,
         out / CACHE,
@@ -432,7 +432,7 @@ def train(
                 f.flush()
                 manager.save(done, args=ocp.args.StandardSave(_flat(state)), force=True)
                 manager.wait_until_finished()
-    wall = time.perf_counter() - t_start
+    wall, cpu = time.perf_counter() - t_start, time.process_time() - cpu_start
     from mjx_peg.vision.nets import flat_params
 
     params = {**flat_params("detector", state["det"]), **flat_params("regressor", state["reg"])}
@@ -442,12 +442,15 @@ def train(
         "arch": config.arch,
         "views": views.to_json(),
         "refine": config.refine,
+        "workspace": default_workspace(),
         "classes": {"shapes": ["circle", "square", "triangle"], "sizes_mm": [25, 50, 60]},
         "offset_scale_m": forward.OFFSET_SCALE,
         "train_config": config.to_json(),
         "train_data": str(Path(data_dir)),
         "train_images": int(n_img),
-        "train_wall_s": round(wall, 1) if start == 0 else None,  # a resumed run has no one wall
+        # Wall and CPU time of this process (views, both networks); None when resumed.
+        "train_wall_s": round(wall, 1) if start == 0 else None,
+        "train_cpu_s": round(cpu, 1) if start == 0 else None,
         "view_cutting_s": round(t_views, 1),
         "parameters": int(sum(v.size for v in params.values())),
     }
