@@ -22,6 +22,9 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # read once, when mujoco is first imported
+# The localizer's convolutions are small matrix products: OpenBLAS's threads only contend on a
+# busy 2-core machine (median 22 ms with one thread, 60-200 ms with its default threads here).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 from _report import ROOT, cpu_name, write_section  # noqa: E402  (benchmarks/ is on sys.path)
@@ -135,7 +138,8 @@ def main() -> int:
         )
     if lo is not None:
         lines.append(
-            f"| localize one image (NumPy, detector + 2 regressor passes) | "
+            f"| localize one image (NumPy, OPENBLAS_NUM_THREADS="
+            f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; detector x2 + regressor x2) | "
             f"{1000 * lo['median_s']:.0f} ms median, {1000 * lo['p95_s']:.0f} ms p95 | | |"
         )
     lines += ["", "Reproduce: `python benchmarks/vision.py --write`", ""]

@@ -16,6 +16,24 @@ from mjx_peg.vision.localizer import Localizer
 from mjx_peg.world import constants, scene
 
 
+def _block_mean(image: np.ndarray, k: int) -> np.ndarray:
+    """(H/k, W/k, 3) uint8: the image averaged over k x k blocks (a thumbnail)."""
+    h, w = (image.shape[0] // k) * k, (image.shape[1] // k) * k
+    blocks = image[:h, :w].reshape(h // k, k, w // k, k, 3).astype(np.float32)
+    return blocks.mean(axis=(1, 3)).round().astype(np.uint8)
+
+
+def _palette(path: Path) -> Path:
+    """Rewrite a PNG with a 256-colour adaptive palette (a quarter of the bytes for renders)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(
+            path, optimize=True
+        )
+    return path
+
+
 def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.ndarray:
     """(n + 1, 3) closed outline of the hole's rim at the board top, world frame."""
     n = constants.HOLE_SIDES[shape]
@@ -27,25 +45,11 @@ def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.
     )
 
 
-def _draw(ax, calib: CameraCalibration, shape, size, x, y, yaw, color, label):
+def _draw(ax, calib: CameraCalibration, shape, size, x, y, yaw, color, label, **style):
     uv = calib.project(hole_outline(shape, size, x, y, yaw))
-    ax.plot(uv[:, 0], uv[:, 1], color=color, lw=1.4, label=label)
+    ax.plot(uv[:, 0], uv[:, 1], color=color, label=label, **style)
     c = calib.project(np.array([x, y, constants.HOLE_DEPTH]))
     ax.plot([c[0]], [c[1]], "+", color=color, ms=10, mew=1.6)
-    ref = calib.project(
-        np.array(
-            [
-                [x, y, constants.HOLE_DEPTH],
-                [
-                    x + 0.8 * size * math.cos(yaw - math.pi / 2),
-                    y + 0.8 * size * math.sin(yaw - math.pi / 2),
-                    constants.HOLE_DEPTH,
-                ],
-            ]
-        )
-    )
-    if shape != "circle":
-        ax.plot(ref[:, 0], ref[:, 1], color=color, lw=1.0)
 
 
 def predictions_png(localizer: Localizer, items, path: Path) -> Path:
@@ -75,8 +79,21 @@ def predictions_png(localizer: Localizer, items, path: Path) -> Path:
         for row in range(2):
             ax = axes[row, col]
             ax.imshow(image)
-            _draw(ax, true_cam, b["shape"], b["size"], b["x"], b["y"], b["yaw"], "lime", "true")
-            _draw(ax, calib, e.shape, e.size, e.x, e.y, e.yaw, "magenta", "predicted")
+            _draw(
+                ax,
+                true_cam,
+                b["shape"],
+                b["size"],
+                b["x"],
+                b["y"],
+                b["yaw"],
+                "lime",
+                "true",
+                lw=3.0,
+            )
+            _draw(
+                ax, calib, e.shape, e.size, e.x, e.y, e.yaw, "magenta", "predicted", lw=1.2, ls="--"
+            )
             ax.set_xticks([])
             ax.set_yticks([])
             if row == 1:
@@ -96,9 +113,9 @@ def predictions_png(localizer: Localizer, items, path: Path) -> Path:
         "Localizer on held-out renders: true hole (green), predicted (magenta)", fontsize=10
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
-    return path
+    return _palette(path)
 
 
 def gallery_png(items, path: Path, count: int = 12) -> Path:
@@ -115,7 +132,7 @@ def gallery_png(items, path: Path, count: int = 12) -> Path:
     for ax in np.ravel(axes):
         ax.axis("off")
     for ax, (png, label) in zip(np.ravel(axes), picks, strict=False):
-        ax.imshow(read_png(png)[::2, ::2])
+        ax.imshow(_block_mean(read_png(png), 4))
         v = label["view"]
         n = len(v["distractors"])
         ax.set_title(
@@ -124,9 +141,9 @@ def gallery_png(items, path: Path, count: int = 12) -> Path:
             fontsize=7,
         )
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=80)
     plt.close(fig)
-    return path
+    return _palette(path)
 
 
 def write_figures(localizer: Localizer, split_dir, out_dir) -> list[Path]:
