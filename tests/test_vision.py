@@ -223,6 +223,20 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     _one_line_error(
         capsys, ["render", "--out", str(tmp_path / "r"), "--count", "2", "--condition", "foggy"]
     )
+    err = _one_line_error(
+        capsys,
+        [
+            "evaluate",
+            "--model",
+            str(tmp_path / "m"),
+            "--data",
+            str(tmp_path / "d"),
+            "--out",
+            str(tmp_path / "m" / "eval"),
+        ],
+    )
+    assert "an output never replaces an input" in err
+    _one_line_error(capsys, ["act", "--out", str(tmp_path / "a"), "--trials", "0"])
     with pytest.raises(CalibrationError):
         CameraCalibration.from_json(doc | {"intrinsics": {"fx": 1, "fy": 1, "cx": 0}})
 

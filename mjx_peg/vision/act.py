@@ -24,6 +24,7 @@ test on the trials where the two differ). Writes trials.csv, summary.md and summ
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import time
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
@@ -43,6 +45,7 @@ from mjx_peg.world.constants import SHAPES
 from mjx_peg.world.rotations import tool_down_rotation
 from mjx_peg.world.task import TaskConfig, TrialSpec, feasible_configuration, sample_trials
 
+RESULT_FILES = ("trials.csv", "summary.json", "summary.md")
 PAPER_SUCCESS = 0.92  # section 6.6: 92 % over 200 trials for both circle and square
 LOC_MM, LOC_DEG = 8.0, 12.0  # the sampled localization error's ranges
 TILT_DEG, GRASP_DZ_FRACTION = 12.0, 0.30  # grasp errors: tilt, height as a fraction of S/2
@@ -281,12 +284,13 @@ def run_act(
         "paper_success": PAPER_SUCCESS,
     }
     summary["wall_s"] = round(time.perf_counter() - t_all, 1)
-    with open(out / "trials.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    (out / "summary.md").write_text(summary_markdown(summary))
+    table = io.StringIO()
+    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    cli.write_atomic(out / "trials.csv", table.getvalue())
+    cli.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    cli.write_atomic(out / "summary.md", summary_markdown(summary))
     return summary
 
 

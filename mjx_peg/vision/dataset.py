@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import cli
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.randomize import (
     CONDITIONS,
@@ -42,6 +43,12 @@ from mjx_peg.vision.randomize import (
 from mjx_peg.world import constants
 
 SCHEMA = "mjx-peg-vision-split"
+
+
+class OtherSplit(ValueError):
+    """--out holds something else than this split (another config, or not a split)."""
+
+
 MANIFEST = "manifest.json"
 
 
@@ -128,9 +135,8 @@ def draw(config: SplitConfig, index: int) -> tuple[dict, dict]:
 def _png_write(path: Path, rgb: np.ndarray) -> None:
     from PIL import Image
 
-    tmp = path.with_name(path.name + ".tmp")
-    Image.fromarray(rgb).save(tmp, format="PNG", compress_level=1)
-    os.replace(tmp, path)
+    image = Image.fromarray(rgb)
+    cli.write_atomic(path, lambda tmp: image.save(tmp, format="PNG", compress_level=1))
 
 
 def read_png(path: str | os.PathLike) -> np.ndarray:
@@ -148,9 +154,7 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
 
 
 def _json_write(path: Path, doc: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc) + "\n")
-    os.replace(tmp, path)
+    cli.write_atomic(path, json.dumps(doc) + "\n")
 
 
 @dataclass(frozen=True)
@@ -194,20 +198,19 @@ def prepare_split(out, config: SplitConfig) -> Path:
         try:
             saved = json.loads(path.read_text())["config"]
         except (OSError, ValueError, KeyError, TypeError):
-            raise ValueError(f"{path} is not a vision split manifest; use another --out") from None
+            raise OtherSplit(f"{path} is not a vision split manifest") from None
         saved.setdefault("shapes", list(SHAPES))  # splits made before these options existed
         saved.setdefault("sizes_mm", list(SIZES_MM))
         for key in ("seed", "condition", "width", "height", "shapes", "sizes_mm"):
             if saved.get(key) != doc["config"][key]:
-                raise ValueError(
-                    f"{out} holds a split with {key} {saved.get(key)!r}, not "
-                    f"{doc['config'][key]!r}; use another --out or the same options"
+                raise OtherSplit(
+                    f"{out} holds a split with {key} {saved.get(key)!r}, not {doc['config'][key]!r}"
                 )
         if saved.get("count") != config.count:  # growing or shrinking a split is fine
             _json_write(path, doc)
         return out
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"{out} exists and is not a vision split; use another --out")
+        raise OtherSplit(f"{out} exists and is not a vision split")
     out.mkdir(parents=True, exist_ok=True)
     _json_write(path, doc)
     return out

@@ -15,6 +15,8 @@ from mjx_peg.vision.dataset import read_png, split_items
 from mjx_peg.vision.localizer import Localizer
 from mjx_peg.world import constants, scene
 
+FIGURES = ("predictions.png", "gallery.png")
+
 
 def _block_mean(image: np.ndarray, k: int) -> np.ndarray:
     """(H/k, W/k, 3) uint8: the image averaged over k x k blocks (a thumbnail)."""
@@ -23,15 +25,24 @@ def _block_mean(image: np.ndarray, k: int) -> np.ndarray:
     return blocks.mean(axis=(1, 3)).round().astype(np.uint8)
 
 
-def _palette(path: Path) -> Path:
-    """Rewrite a PNG with a 256-colour adaptive palette (a quarter of the bytes for renders)."""
+def _save(fig, path: Path, dpi: int) -> Path:
+    """Write a figure as a PNG with a 256-colour adaptive palette (a quarter of the bytes for
+    renders), atomically; closes the figure."""
+    import matplotlib.pyplot as plt
     from PIL import Image
 
-    with Image.open(path) as im:
-        im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(
-            path, optimize=True
-        )
-    return path
+    from mjx_peg import cli
+
+    def write(tmp: Path) -> None:
+        fig.savefig(tmp, dpi=dpi, format="png")
+        with Image.open(tmp) as im:
+            paletted = im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+        paletted.save(tmp, format="PNG", optimize=True)
+
+    try:
+        return cli.write_atomic(path, write)
+    finally:
+        plt.close(fig)
 
 
 def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.ndarray:
@@ -113,9 +124,7 @@ def predictions_png(localizer: Localizer, items, path: Path) -> Path:
         "Localizer on held-out renders: true hole (green), predicted (magenta)", fontsize=10
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return _palette(path)
+    return _save(fig, path, dpi=90)
 
 
 def gallery_png(items, path: Path, count: int = 12) -> Path:
@@ -141,9 +150,7 @@ def gallery_png(items, path: Path, count: int = 12) -> Path:
             fontsize=7,
         )
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return _palette(path)
+    return _save(fig, path, dpi=80)
 
 
 def write_figures(localizer: Localizer, split_dir, out_dir) -> list[Path]:

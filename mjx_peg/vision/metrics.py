@@ -29,6 +29,7 @@ from mjx_peg.world import constants
 from mjx_peg.world.constants import SHAPES
 
 PERCENTILES = (50, 95, 99)
+REPORT_FILES = ("errors.csv", "metrics.json", "summary.md")
 PAPER_BAR = (8.0, 8.0)  # mm, deg: the paper's YOLO-like model's maximum error
 GOAL = (2.0, 2.0)  # mm, deg at the 99th percentile
 
@@ -172,16 +173,21 @@ def summary_markdown(report: dict, title: str) -> str:
 
 
 def write_report(rows: list[dict], out_dir, title: str) -> dict:
-    """errors.csv, metrics.json and summary.md in out_dir; returns the report."""
+    """errors.csv, metrics.json and summary.md in out_dir (each written atomically)."""
+    import io
+
+    from mjx_peg import cli
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "errors.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    table = io.StringIO()
+    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    cli.write_atomic(out / "errors.csv", table.getvalue())
     report = summarize(rows)
-    (out / "metrics.json").write_text(json.dumps(report, indent=2) + "\n")
-    (out / "summary.md").write_text(summary_markdown(report, title))
+    cli.write_atomic(out / "metrics.json", json.dumps(report, indent=2) + "\n")
+    cli.write_atomic(out / "summary.md", summary_markdown(report, title))
     return report
 
 

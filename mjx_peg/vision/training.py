@@ -308,6 +308,10 @@ def _unflat(template, flat):
 # --- the loop ------------------------------------------------------------------------------------
 
 
+class OtherModel(ValueError):
+    """--out holds something else than this training run (another config, or not a model)."""
+
+
 def prepare_out(out: Path, config: VisionTrainConfig) -> None:
     """Create --out with train_config.json, or check that it holds the same config."""
     path = out / CONFIG_FILE
@@ -315,13 +319,12 @@ def prepare_out(out: Path, config: VisionTrainConfig) -> None:
         saved = json.loads(path.read_text())
         if saved != config.to_json():
             diff = [k for k in config.to_json() if saved.get(k) != config.to_json()[k]]
-            raise ValueError(
-                f"{out} holds a localizer trained with another config ({', '.join(diff)} "
-                "differ); use another --out or the same options"
+            raise OtherModel(
+                f"{out} holds a localizer trained with another config ({', '.join(diff)} differ)"
             )
         return
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"{out} exists and is not a localizer training directory")
+        raise OtherModel(f"{out} exists and is not a localizer training directory")
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(config.to_json(), indent=2) + "\n")
 
