@@ -72,11 +72,12 @@ mujoco_log.install()
 SLOTS_PER_THREAD = 512
 # A persistent batch (one MjData per simulation) continues each step from the position and
 # velocity stages the controller read, but its simulations' memory leaves the caches as the batch
-# grows: measured here (CPU time per step, the baseline jammed in the hole), 6.6 us at 64
-# simulations, 9.5 at 256, 11.3 at 512, against 9.2 at any size with one MjData per C thread
-# (which recomputes those stages) and 5.7 for mj_step on one MjData. Batches of up to this many
-# simulations are persistent (results are the same either way).
-PERSISTENT_MAX_SIMS = 192
+# grows. CPU time per step on this 2-core machine (the baseline jammed in the hole, 512 states):
+# persistent 5.8-6.3 us at 64-256 simulations, 6.8-7.4 at 512; one MjData per C thread (which
+# recomputes those stages) 8.7-9.0 at any size; mj_step on one MjData 5.4. Under other jobs'
+# load the persistent batch of 512 fell to 11.3 us (the non-persistent one: 9.2). Batches of up
+# to this many simulations are persistent (results are the same either way).
+PERSISTENT_MAX_SIMS = 512
 STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 STAGE_ACC = int(mujoco.mjtStage.mjSTAGE_ACC)
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
