@@ -62,9 +62,10 @@ PRESETS: dict[str, tuple[tuple[float, ...], tuple[float, ...], int]] = {
     ),
 }
 DEFAULT_SHAPES = ("circle", "square")  # the paper's nominal conditions
-DEFAULT_CHUNK_TRIALS = 1000  # trials per run_trials call: results saved this often; smaller
-# chunks leave the engine's slots idle at the end of each call (200 trials ran at 60-75 % of
-# the throughput of 1000 here)
+DEFAULT_CHUNK_TRIALS = 10_000  # trials per run_trials call: results saved this often. A call
+# ends by draining its slots: its last trials run with the slots around them empty, as long as a
+# failure lasts (60 s). With 1,000 trials per call and 1,024 slots (2 lanes x 512) nothing was
+# ever refilled; 10,000 keep the slots full for most of the call (BENCHMARKS.md "Early ending")
 CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition

@@ -69,6 +69,15 @@ class InsertionEnv(Env):
         self.trial = trial or TrialConfig(time_limit_s=self.task.time_limit_s)
         self.engine = resolve_engine(engine)
         self.engine_options = dict(engine_options or {})
+        self._last_specs: tuple[bytes, TrialSpec] | None = None  # reset's draw, reused by step
+
+    def _specs(self, seeds: np.ndarray) -> TrialSpec:
+        """specs_from_seeds, remembered for the last seeds: reset and step of one iteration
+        draw the same trials, and the draw (one rejection-sampled IK per trial) is serial."""
+        key = np.ascontiguousarray(seeds, dtype=np.uint32).tobytes()
+        if self._last_specs is None or self._last_specs[0] != key:
+            self._last_specs = (key, specs_from_seeds(self.task, seeds))
+        return self._last_specs[1]
 
     @property
     def observation_size(self) -> dict[str, tuple[int]]:
@@ -84,7 +93,7 @@ class InsertionEnv(Env):
 
     # Host side (NumPy). Called with a leading batch dim under vmap, without one otherwise.
     def _observe_host(self, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        specs = specs_from_seeds(self.task, seeds)
+        specs = self._specs(seeds)
         obs = observation.observe_specs(specs)
         full = np.concatenate([obs, observation.privileged_specs(specs)], axis=-1)
         batch = np.shape(seeds)[:-1]
@@ -95,7 +104,7 @@ class InsertionEnv(Env):
 
     def _run_host(self, seeds: np.ndarray, vectors: np.ndarray):
         batch = np.shape(seeds)[:-1]
-        specs = specs_from_seeds(self.task, seeds)
+        specs = self._specs(seeds)
         params = np.asarray(vectors, dtype=np.float64).reshape(-1, N_PARAMS)
         result = run_trials(specs, params, self.engine, self.trial, **self.engine_options)
         out = (
