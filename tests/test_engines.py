@@ -1,10 +1,14 @@
 """Trials in physics: the baseline inserts, bad physics stays contained, the engines agree."""
 
+import os
+import time
+
 import numpy as np
 import pytest
 
+from mjx_peg.engines import mujoco as mujoco_engine
 from mjx_peg.engines import run_trials
-from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -356,3 +360,82 @@ def test_start_trial_edits_only_the_fields_the_engine_expands():
             and not np.array_equal(getattr(m, name), getattr(before, name))
         }  # fmt: skip
         assert changed <= set(cpu_engine.TRIAL_MODEL_FIELDS), changed
+
+
+def test_worker_processes_give_the_in_process_results():
+    """processes=2: the same results, bit for bit, and every trial reported to progress; bad
+    options are one error before any process starts."""
+    task = TaskConfig(shapes=("square", "circle"), linear_error=0.003, angular_error=0.07)
+    specs = sample_trials(task, 3, 12)
+    params = as_controller_params(baseline_params(), len(specs))
+    config = TrialConfig(time_limit_s=1.0)
+    here = mujoco_engine.run_trials(specs, params, config, threads=1)
+    counts = []
+    there = mujoco_engine.run_trials(specs, params, config, processes=2, progress=counts.append)
+    for name, value in here.to_arrays().items():
+        np.testing.assert_array_equal(getattr(there, name), value, err_msg=name)
+    assert sum(counts) == len(specs)
+    with pytest.raises(ValueError, match="slots_per_thread must be a positive integer"):
+        mujoco_engine.run_trials(specs, params, config, processes=2, slots_per_thread=0)
+
+
+def test_a_dead_worker_process_is_one_clear_error():
+    """A worker killed mid-call (as a crash in C would): RuntimeError, not a hang."""
+    import signal
+    import threading
+
+    from mjx_peg.engines import processes
+
+    specs = sample_trials(TaskConfig(shapes=("square",)), 1, 4)
+    params = np.tile(baseline_params(), (4, 1))
+    params[:, 0] = 1e-6  # no stiffness: every trial hovers to the time limit
+    params = as_controller_params(params, 4)
+
+    def kill_a_worker():
+        for _ in range(400):
+            workers = processes._pool and getattr(processes._pool[1], "_processes", None)
+            if workers:
+                os.kill(next(iter(workers)), signal.SIGKILL)
+                return
+            time.sleep(0.05)
+
+    threading.Thread(target=kill_a_worker, daemon=True).start()
+    start = time.monotonic()
+    with pytest.raises(RuntimeError, match="worker process of the CPU engine died"):
+        mujoco_engine.run_trials(specs, params, TrialConfig(time_limit_s=600.0), processes=2)
+    assert time.monotonic() - start < 60.0
+
+
+def test_interrupting_a_call_on_worker_processes_stops_them():
+    """Ctrl-C: KeyboardInterrupt within 2 s and the workers gone; SIGKILL of the caller: its
+    workers die with it."""
+    import signal
+    import subprocess
+    import sys
+
+    code = _LONG_CALL.replace("threads=2,", "processes=2,")
+    for sig in (signal.SIGINT, signal.SIGKILL):
+        caller = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)  # fmt: skip
+        assert caller.stdout.readline().strip() == "started"
+        workers = _children(caller.pid)
+        assert len(workers) >= 2
+        start = time.monotonic()
+        caller.send_signal(sig)
+        _, err = caller.communicate(timeout=10.0)
+        assert time.monotonic() - start < 2.0
+        if sig == signal.SIGINT:
+            assert "KeyboardInterrupt" in err and caller.returncode != 0
+        deadline = time.monotonic() + 5.0
+        while any(map(_running, workers)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not [w for w in workers if _running(w)]
+
+
+def _running(pid: int) -> bool:
+    """The process exists and is not a zombie (killed, waiting to be reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False

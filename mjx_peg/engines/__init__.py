@@ -43,7 +43,8 @@ def run_trials(
 
     params: `ControllerParams` (batched or not) or physical 38-vectors, shape (38,) or (B, 38).
     engine_options: `threads` (lanes, default every core; `workers` is its former name),
-    `slots_per_thread`, `batch_threads`, `persistent` (mujoco); `batch`, `recycle_every` (mjx).
+    `slots_per_thread`, `batch_threads`, `persistent`, `processes` (lanes in that many worker
+    processes, `engines/processes.py`) (mujoco); `batch`, `recycle_every` (mjx).
     """
     name = resolve_engine(engine)
     if not isinstance(specs, TrialSpec):

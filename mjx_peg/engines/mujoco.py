@@ -666,6 +666,7 @@ def run_trials(
     workers: int | None = None,
     batch_threads: int | None = None,
     persistent: bool | None = None,
+    processes: int | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -680,8 +681,24 @@ def run_trials(
     progress(count) is called in the caller's thread as trials finish. observer(lane, rows,
     wrench), if given, is called every control period with a lane, its live rows and their
     wrenches (for demos and benchmarks); it needs threads=1, its default then.
+    processes: run the trials in that many worker processes (`engines/processes.py`: one GIL
+    each) of `threads` lanes each (default 1); None (the default): lanes in this process.
     """
     n = len(specs)
+    if processes is not None:
+        processes = _count("processes", processes, 1)
+        if observer is not None:
+            raise ValueError("an observer runs in the lane's thread: it needs processes=None")
+        threads = threads if threads is not None else workers
+        for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
+                            ("batch_threads", batch_threads)):  # fmt: skip
+            _count(name, value, 1)  # bad values: one error here, before any process starts
+        from mjx_peg.engines import processes as worker_processes
+
+        return worker_processes.run_trials(
+            specs, params, config, processes, threads=threads, progress=progress,
+            slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
+        )  # fmt: skip
     if workers is not None and threads is not None and workers != threads:
         raise ValueError(f"threads ({threads}) and workers ({workers}) name the same option")
     threads = threads if threads is not None else workers

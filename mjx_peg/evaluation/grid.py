@@ -597,6 +597,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
     p.add_argument(
+        "--processes",
+        type=cli.WORKERS,
+        help="mujoco engine: run its lanes in this many worker processes, --threads lanes each "
+        "(default: lanes as threads of this process; processes scale past the GIL)",
+    )
+    p.add_argument(
         "--chunk-trials",
         type=cli.TRIALS,
         default=DEFAULT_CHUNK_TRIALS,
@@ -678,7 +684,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy = str(args.policy)
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
-    options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+    options = {k: getattr(args, k) for k in ("threads", "workers", "processes") if getattr(args, k)}
     check_engine_options(config.engine, options)
     other = None if args.compare is None else load_evaluation_grid(args.compare)
     paper_name = args.paper
