@@ -257,25 +257,32 @@ _LONG_CALL = (
 )
 
 
-def test_interrupting_the_caller_stops_the_call():
-    """Ctrl-C mid-call: KeyboardInterrupt in the caller within a second, the lanes stopped;
-    the engine starts no process (SIGKILL of the caller leaves nothing running)."""
+@pytest.mark.parametrize("lanes", ["threads", "processes"])
+def test_interrupting_the_caller_stops_the_call(lanes):
+    """Ctrl-C mid-call: KeyboardInterrupt in the caller within a second or two, the lanes
+    stopped. Lanes as threads start no process; lanes in worker processes (processes=2) stop
+    with the caller: killed on Ctrl-C, and dying with it on SIGKILL."""
     import signal
     import subprocess
     import sys
-    import time
 
+    code = _LONG_CALL.replace("threads=2,", f"{lanes}=2,")
     for sig in (signal.SIGINT, signal.SIGKILL):
-        caller = subprocess.Popen([sys.executable, "-c", _LONG_CALL], stdout=subprocess.PIPE,
+        caller = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                                   stderr=subprocess.PIPE, text=True)  # fmt: skip
         assert caller.stdout.readline().strip() == "started"
-        assert _children(caller.pid) == []
+        workers = _children(caller.pid)
+        assert len(workers) >= 2 if lanes == "processes" else workers == []
         start = time.monotonic()
         caller.send_signal(sig)
         _, err = caller.communicate(timeout=10.0)
         assert time.monotonic() - start < 2.0
         if sig == signal.SIGINT:
             assert "KeyboardInterrupt" in err and caller.returncode != 0
+        deadline = time.monotonic() + 5.0
+        while any(map(_running, workers)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not [w for w in workers if _running(w)]
 
 
 def _children(pid: int) -> list[int]:
@@ -404,32 +411,6 @@ def test_a_dead_worker_process_is_one_clear_error():
     with pytest.raises(RuntimeError, match="worker process of the CPU engine died"):
         mujoco_engine.run_trials(specs, params, TrialConfig(time_limit_s=600.0), processes=2)
     assert time.monotonic() - start < 60.0
-
-
-def test_interrupting_a_call_on_worker_processes_stops_them():
-    """Ctrl-C: KeyboardInterrupt within 2 s and the workers gone; SIGKILL of the caller: its
-    workers die with it."""
-    import signal
-    import subprocess
-    import sys
-
-    code = _LONG_CALL.replace("threads=2,", "processes=2,")
-    for sig in (signal.SIGINT, signal.SIGKILL):
-        caller = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
-                                  stderr=subprocess.PIPE, text=True)  # fmt: skip
-        assert caller.stdout.readline().strip() == "started"
-        workers = _children(caller.pid)
-        assert len(workers) >= 2
-        start = time.monotonic()
-        caller.send_signal(sig)
-        _, err = caller.communicate(timeout=10.0)
-        assert time.monotonic() - start < 2.0
-        if sig == signal.SIGINT:
-            assert "KeyboardInterrupt" in err and caller.returncode != 0
-        deadline = time.monotonic() + 5.0
-        while any(map(_running, workers)) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert not [w for w in workers if _running(w)]
 
 
 def _running(pid: int) -> bool:

@@ -111,6 +111,18 @@ def _warn_gl() -> None:
         cli.note(PROG, f"warning: {gl.fallback_note()}")
 
 
+def _prepare_or_move(prepare, other: type[Exception], out: Path, config, force: bool) -> None:
+    """prepare(out, config); where --out holds other work, refuse, or with --force move it aside
+    and prepare afresh."""
+    try:
+        prepare(out, config)
+    except other as exc:
+        if not force:
+            raise ValueError(f"{exc}: choose another --out, the same options, or --force") from None
+        cli.note(PROG, f"--force: moved {out} aside to {cli.move_aside(out)}")
+        prepare(out, config)
+
+
 def _render(args) -> str:
     from mjx_peg.vision.dataset import OtherSplit, SplitConfig, prepare_split, render_split
     from mjx_peg.world import mujoco_log
@@ -130,13 +142,7 @@ def _render(args) -> str:
         shapes=_csv(args.shapes),
         sizes_mm=tuple(sizes),
     )
-    try:
-        prepare_split(args.out, config)
-    except OtherSplit as exc:
-        if not args.force:
-            raise ValueError(f"{exc}: choose another --out, the same options, or --force") from None
-        cli.note(PROG, f"--force: moved {args.out} aside to {cli.move_aside(args.out)}")
-        prepare_split(args.out, config)
+    _prepare_or_move(prepare_split, OtherSplit, args.out, config, args.force)
     mujoco_log.send_to(args.out)
     _warn_gl()
     n = render_split(args.out, config, progress=not args.no_progress)
@@ -156,12 +162,7 @@ def _train(args) -> str:
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
-    try:
-        prepare_out(args.out, config)
-    except OtherModel as exc:
-        if not args.force:
-            raise ValueError(f"{exc}: choose another --out, the same options, or --force") from None
-        cli.note(PROG, f"--force: moved {args.out} aside to {cli.move_aside(args.out)}")
+    _prepare_or_move(prepare_out, OtherModel, args.out, config, args.force)
     loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"
