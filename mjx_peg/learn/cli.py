@@ -57,6 +57,12 @@ def parser() -> argparse.ArgumentParser:
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
     p.add_argument("--workers", type=cli.WORKERS, help="CPU engine threads (default: all cores)")
+    p.add_argument(
+        "--processes",
+        type=cli.WORKERS,
+        help="CPU engine: its lanes in this many worker processes, --workers lanes each (default: "
+        "lanes as threads of this process; processes scale past the GIL)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -115,6 +121,10 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     out = args.out or Path("runs", args.preset)
     config = resolve_config(args)
+    from mjx_peg.engines import resolve_engine
+
+    if args.processes is not None and resolve_engine(config.engine) != "mujoco":
+        raise ValueError("--processes is an option of the mujoco engine, not of mjx")
     if config.init_from:
         cli.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
@@ -124,7 +134,7 @@ def main(argv=None) -> int:
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(out)  # written only on a warning, once the run directory exists
-    options = {} if args.workers is None else {"workers": args.workers}
+    options = {k: getattr(args, k) for k in ("workers", "processes") if getattr(args, k)}
     summary = train(
         config,
         out,
