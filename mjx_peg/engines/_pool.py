@@ -56,6 +56,8 @@ RESULT_DTYPE = np.dtype(
         ("reward", "<f8"),
         ("unstable", "?"),
         ("steps", "<i8"),
+        ("chatter", "<f8"),
+        ("protective_stop", "?"),
     ]
 )
 # Trials differ a lot in length (a failure runs to the time limit): the workers first get this

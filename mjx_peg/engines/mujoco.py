@@ -31,19 +31,23 @@ from mjx_peg.engines._pool import RESULT_DTYPE, to_result
 from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
+    chatter_of,
     control_config,
     destination,
     fitted_basis,
     is_success,
+    sensor_params,
     trial_reward,
 )
+from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import (
     Measurement,
     Skill,
+    external_wrench,
     make_skill,
     skill_torque,
     start_state,
-    wrench_in_goal_frame,
+    wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
@@ -80,7 +84,9 @@ class _Layout(NamedTuple):
 # Arrays of a batch with one row per trial (moved with their trial when rows are compacted).
 _ROW_ARRAYS = (
     "goal_pos goal_rot y0 k_y d_y compliance tare board_pos size start_distance peak_force step "
-    "spec_index jac jac_dot mass qvel bias sim_time site_pos site_mat sensor"
+    "spec_index jac jac_dot mass qvel bias sim_time site_pos site_mat sensor "
+    "s_seed s_hold s_delay s_alpha s_noise s_bias s_history s_filtered coupled "
+    "chatter_ring axial stop"
 ).split()
 
 
@@ -88,7 +94,8 @@ _ROW_ARRAYS = (
 _Live = collections.namedtuple(
     "_Live",
     "goal_pos goal_rot y0 k_y d_y compliance tcp_pos tcp_rot jac jac_dot qvel mass bias force "
-    "torque tare ft_rot ft_pos step peak_force",
+    "torque tare ft_rot ft_pos step peak_force s_seed s_hold s_delay s_alpha s_noise s_bias "
+    "s_history s_filtered coupled chatter_ring axial stop",
 )
 
 
@@ -205,6 +212,18 @@ class _Batch:
         self.site_pos = np.zeros((b, lay.nsite, 3))
         self.site_mat = np.tile(eye.ravel(), (b, lay.nsite, 1))
         self.sensor = np.zeros((b, lay.nsensordata))
+        # The F/T pipeline (skill/sensor.py): per-trial constants and carried state; the compliance
+        # damping's low-pass; the contact metrics.
+        hist = config.sensor.max_delay_steps + 1
+        self.s_seed, self.s_hold = np.zeros(b, np.uint32), np.ones(b, np.int32)
+        self.s_delay, self.s_alpha = np.zeros(b, np.int32), np.zeros(b)
+        self.s_noise, self.s_bias = np.zeros((b, 6)), np.zeros((b, 6))
+        self.s_history, self.s_filtered = np.zeros((b, hist, 6)), np.zeros((b, 6))
+        self.coupled = np.zeros((b, 6))
+        self.chatter_ring, self.axial = np.zeros((b, config.chatter_steps)), np.zeros(b)
+        self.stop = np.zeros(b, dtype=bool)
+        self.coupling_pole = config.coupling_pole
+        self.sensor_params = sensor_params(specs, config)  # every trial's, indexed at _load
         self._rows = [getattr(self, name) for name in _ROW_ARRAYS]
         # Views into the copies.
         self.tcp_pos, self.tip_pos = self.site_pos[:, lay.tcp], self.site_pos[:, lay.tip]
@@ -287,19 +306,26 @@ class _Batch:
         tip = env.site_xpos[lay.tip]
         self.start_distance[row] = np.linalg.norm(tip - destination(s.board_pos[index]))
         self.peak_force[row] = 0.0
+        for name, value in zip(("s_seed", "s_hold", "s_delay", "s_alpha", "s_noise", "s_bias"),
+                               self.sensor_params, strict=True):  # fmt: skip
+            getattr(self, name)[row] = value[index]
+        self.s_history[row], self.s_filtered[row], self.coupled[row] = 0.0, 0.0, 0.0
+        self.chatter_ring[row], self.axial[row], self.stop[row] = 0.0, 0.0, False
         self.step[row] = 0
         self.spec_index[row] = index
         self._bind(row, env)
 
     def _finish(self, row: int, success: bool, unstable: bool, sink) -> None:
         steps, tip = self.step[row], self.tip_pos[row].copy()
-        success = success and not unstable
+        stop = bool(self.stop[row])
+        success = success and not unstable and not stop
         reward = trial_reward(
             np.asarray(success), tip, self.board_pos[row], self.start_distance[row],
             self.config.reward,
         )  # fmt: skip
+        chatter = float(chatter_of(self.chatter_ring[row], steps)[0])
         sink.finish((self.spec_index[row], success, steps * self.config.timestep, tip,
-                     self.peak_force[row], reward, unstable, steps))  # fmt: skip
+                     self.peak_force[row], reward, unstable, steps, chatter, stop))  # fmt: skip
         _give_env(self.envs[row])
         self._bind(row, None)
         self.spec_index[row] = -1
@@ -335,7 +361,9 @@ class _Batch:
         ok = (np.abs(self.qvel[:n]).max(axis=-1) < cfg.max_joint_speed) & np.isfinite(tip).all(-1)
         # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
         unstable = ~ok | (np.abs(self.sim_time[:n] - step * dt) > 0.5 * dt)
-        return success, unstable, success | unstable | (step >= cfg.max_steps)
+        stop = self.stop[:n]  # set by the previous period's sensed force
+        success = success & ~stop
+        return success, unstable, success | unstable | stop | (step >= cfg.max_steps)
 
     def _end_trials(self, n: int, source) -> int:
         """Finish the trials that ended, refill their rows from `source`; the new n."""
@@ -362,6 +390,31 @@ class _Batch:
             self._views = (n, _Live(*(getattr(self, k)[:n] for k in _Live._fields)))
         return self._views[1]
 
+    def _sense_wrench(self, v: _Live) -> np.ndarray:
+        """The wrench the controller sees (goal frame, at the tcp) for the live rows `v`: the F/T
+        pipeline, the compliance damping's low-pass, and the contact metrics on the way."""
+        true = external_wrench(v.force, v.torque, v.tare)  # sensor frame
+        params = sensor.SensorParams(v.s_seed, v.s_hold, v.s_delay, v.s_alpha, v.s_noise, v.s_bias)
+        sensed, state = sensor.step(
+            params, sensor.SensorState(v.s_history, v.s_filtered), true, v.step
+        )
+        v.s_history[:], v.s_filtered[:] = state.history, state.filtered
+        force = np.linalg.norm(sensed[:, :3], axis=-1)
+        np.maximum(v.peak_force, force, out=v.peak_force)
+        np.logical_or(v.stop, force > self.config.max_tool_force, out=v.stop)
+        # Chatter of the true axial force: goal z of the world force.
+        axial = np.einsum("bi,bij,bj->b", v.goal_rot[:, :, 2], v.ft_rot, true[:, :3])
+        later = v.step >= 1
+        rows = np.flatnonzero(later)
+        v.chatter_ring[rows, v.step[rows] % v.chatter_ring.shape[1]] = np.abs(
+            axial[rows] - v.axial[rows]
+        )
+        v.axial[:] = axial
+        wrench = wrench_to_goal(sensed, v.ft_rot, v.ft_pos - v.tcp_pos, v.goal_rot)
+        a = self.coupling_pole
+        v.coupled[:] = a * v.coupled + (1.0 - a) * wrench
+        return v.coupled
+
     def run(self, source, observer: Callable | None = None) -> None:
         """Step until `source` runs dry; `observer(batch, rows, wrench)` sees every step."""
         cfg = self.config
@@ -379,10 +432,7 @@ class _Batch:
             if not n:
                 return
             v = self._live(n)
-            wrench = wrench_in_goal_frame(
-                v.force, v.torque, v.tare, v.ft_rot, v.ft_pos - v.tcp_pos, v.goal_rot
-            )
-            np.maximum(v.peak_force, np.linalg.norm(wrench[:, :3], axis=-1), out=v.peak_force)
+            wrench = self._sense_wrench(v)
             if observer is not None:
                 observer(self, np.arange(n), wrench)
             meas = Measurement(

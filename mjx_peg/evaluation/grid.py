@@ -68,7 +68,17 @@ CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
 _MAX_ERROR = {"linear_mm": 50.0, "angular_deg": 45.0}  # TaskConfig's bounds, in mm and deg
-_RESULT_FIELDS = ("success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward")
+_RESULT_FIELDS = (
+    "success",
+    "time_s",
+    "shape_id",
+    "unstable",
+    "steps",
+    "peak_force",
+    "reward",
+    "chatter",
+    "protective_stop",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -380,9 +390,13 @@ def load_evaluation_grid(eval_dir) -> es.GridTable:
 def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str) -> list[str]:
     per_shape = {s: [0, 0] for s in config.shapes}
     steps = 0
+    contact = {k: [] for k in ("peak_force", "chatter", "protective_stop", "time_s")}
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         steps += int(arrays["steps"].sum())
+        for k in contact:
+            if k in arrays:  # evaluations from before the sensor pipeline lack them
+                contact[k].append(arrays[k])
         for s in config.shapes:
             mine = arrays["shape_id"] == SHAPES.index(s)
             per_shape[s][0] += int(arrays["success"][mine].sum())
@@ -402,6 +416,23 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
         f"simulated: {steps} physics steps = {steps * TrialConfig().timestep:.0f} s",
+    ] + _contact_lines({k: np.concatenate(v) for k, v in contact.items() if v})
+
+
+def _contact_lines(arrays: dict[str, np.ndarray]) -> list[str]:
+    """The contact metrics of all trials (TrialResult.contact_summary), if they were recorded."""
+    if not {"peak_force", "chatter", "protective_stop", "time_s"} <= set(arrays):
+        return []
+    n = arrays["peak_force"].size
+    long = arrays["chatter"][arrays["time_s"] > 1.2]
+    p50, p99 = np.percentile(arrays["peak_force"], [50, 99])
+    return [
+        f"contact: peak sensed force median {p50:.0f} N, p99 {p99:.0f} N; protective stops "
+        f"{int(arrays['protective_stop'].sum())} ({100.0 * arrays['protective_stop'].mean():.1f} "
+        f"%); chatter (mean |dF| of the axial force over a trial's last second) under 5 N in "
+        f"{100.0 * (long < 5.0).mean() if long.size else math.nan:.1f} % of the {long.size} "
+        f"trials longer than 1.2 s, median {np.median(long) if long.size else math.nan:.2f} N"
+        f" (of {n} trials)"
     ]
 
 
