@@ -179,7 +179,7 @@ def test_results_do_not_depend_on_workers():
     specs = _mixed_specs(12, seed=6)
     params = np.tile(baseline_params(), (12, 1))
     params[5, :2] = 1e9  # one trial blows up
-    config = TrialConfig(time_limit_s=2.5)  # the movement takes 2 s
+    config = TrialConfig(time_limit_s=6.0)  # the approach takes 2 s
     local = run_trials(specs, params, engine="mujoco", config=config, workers=1)
     counts = []
     pooled = run_trials(
