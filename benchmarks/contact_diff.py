@@ -33,8 +33,8 @@ def snapshots(specs, rows, step: int, config: TrialConfig) -> dict[int, tuple]:
         for i in live:
             index = int(rows[batch.spec_index[i]])  # batch rows move as trials end
             if int(batch.step[i]) == step and index not in taken:
-                m, d, _ = batch._step_args[i]
-                taken[index] = (m, copy.copy(d))
+                m, d, _ = batch.current[i]  # copies, reused by the engine
+                taken[index] = (copy.copy(m), copy.copy(d))
 
     run_trials(
         specs.take(rows), baseline_params(), engine="mujoco", config=config, workers=1,

@@ -1,16 +1,18 @@
-"""Trial throughput of each engine, against the raw ceiling of bare mj_step on the same scene.
+"""Trial throughput of each engine, against the ceiling of bare mj_step on the same states.
 
-    python benchmarks/trials.py [--trials 200] [--workers N] [--mjx-trials 8] [--write]
+    python benchmarks/trials.py [--trials 1000] [--threads N] [--mjx-trials 8] [--write]
 
 Runs the hand-tuned baseline on `--trials` square 50 mm trials at 3 mm / 4 deg on the mujoco
-engine, in this process (1 worker) and on `--workers` worker processes (default: every core),
-and reports physics steps/s and trials/s. In the same run, the ceiling: the states the engine
-visited (a snapshot every `--replay-every` steps, contacts included) are replayed with plain
-`mj_step` and the recorded torques held, no controller, on as many processes as the engine used.
-It also times a near-empty call (the fixed cost of a call) and profiles one in-process batch by
-part (each part wrapped in a timer, the timer's own cost subtracted). The mjx engine is timed on
-`--mjx-trials` trials (compile time reported apart). `--write` replaces the "## Trial engines"
-section of BENCHMARKS.md.
+engine with 1 thread (lane) and with `--threads` (default: every core), every failure to the
+time limit, and reports physics steps/s and trials/s. In the same run, two ceilings: the states
+the engine visited (a snapshot every `--replay-every` steps, contacts included) replayed with
+plain `mj_step` and the recorded torques held, no controller, on as many processes as the engine
+has threads (the ratio's reference), and the same snapshots stepped by `mujoco.batch.Batch`, one
+step per call over 512 simulations at a time (the physics as the engine runs it). Then the engine
+with early ending (TrialConfig.end_settled, the default), the fixed cost of a call, and a profile
+of one lane by part (each part wrapped in a timer, the timers' own cost subtracted). The mjx
+engine is timed on `--mjx-trials` trials (compile time reported apart). `--write` replaces the
+"## Trial engines" section of BENCHMARKS.md.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import os
 import time
 
 import mujoco
+import mujoco.batch
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
@@ -34,19 +37,20 @@ from mjx_peg.world.task import TaskConfig, sample_trials
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def time_engine(specs, params, config, workers):
-    start = time.perf_counter()
-    result = cpu_engine.run_trials(specs, params, config, workers=workers)
-    return result, time.perf_counter() - start
+def time_engine(specs, params, config, threads, slots=None):
+    """(result, wall s, CPU s of this process: all its threads)."""
+    start, cpu = time.perf_counter(), time.process_time()
+    result = cpu_engine.run_trials(specs, params, config, threads=threads, slots_per_thread=slots)
+    return result, time.perf_counter() - start, time.process_time() - cpu
 
 
-def call_overhead(specs, params, workers, calls=20):
+def call_overhead(specs, params, threads, calls=20):
     """Median wall time (s) of a call running 2 trials of one step each."""
     config = TrialConfig(time_limit_s=TrialConfig().timestep)
     two, times = specs.take(np.arange(2)), []
     for _ in range(calls):
         start = time.perf_counter()
-        cpu_engine.run_trials(two, params, config, workers=workers)
+        cpu_engine.run_trials(two, params, config, threads=threads)
         times.append(time.perf_counter() - start)
     return float(np.median(times))
 
@@ -55,29 +59,32 @@ def record_states(specs, params, config, every):
     """(spec index, state) snapshots of the engine's trials, every `every` steps."""
     snaps = []
 
-    def observe(batch, rows, wrench):
-        for i in rows:
-            if batch.step[i] % every == 0:
-                m, d, _ = batch.current[i]
-                state = np.empty(mujoco.mj_stateSize(m, STATE))
-                mujoco.mj_getState(m, d, state, STATE)
-                snaps.append((int(batch.spec_index[i]), state))
+    def observe(lane, rows, wrench):
+        for i in rows[lane.step[rows] % every == 0]:
+            m, d, _ = lane.current[i]
+            state = np.empty(mujoco.mj_stateSize(m, STATE))
+            mujoco.mj_getState(m, d, state, STATE)
+            snaps.append((int(lane.spec_index[i]), state))
 
-    cpu_engine.run_trials(specs, params, config, workers=1, observer=observe)
+    cpu_engine.run_trials(specs, params, config, threads=1, observer=observe)
     return snaps
+
+
+def _scene_key(specs, index):
+    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
 
 
 def _replay_part(specs, snaps, every, barrier):
     """Steps/s of bare mj_step from each snapshot for `every` steps (run in a worker process)."""
     envs, jobs = {}, []
     for index, state in snaps:
-        key = (constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index]))
+        key = _scene_key(specs, index)
         if key not in envs:
             m = scene.load_model(*key)
             envs[key] = (m, mujoco.MjData(m))
         jobs.append((*envs[key], index, state))
     barrier.wait()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for m, d, index, state in jobs:
         scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
         scene.set_grasp(m, *specs.grasp_error[index])
@@ -85,17 +92,48 @@ def _replay_part(specs, snaps, every, barrier):
         mujoco.mj_setState(m, d, state, STATE)
         for _ in range(every):
             mujoco.mj_step(m, d)
-    return len(jobs) * every, time.perf_counter() - start
+    return len(jobs) * every, time.perf_counter() - start, time.process_time() - cpu
 
 
 def replay(specs, snaps, every, processes):
-    """Bare mj_step from every snapshot on `processes` processes started together; steps/s."""
+    """Bare mj_step from every snapshot on `processes` processes started together: steps/s, and
+    CPU s per step."""
     ctx = multiprocessing.get_context("spawn")
     with ctx.Manager() as manager, ctx.Pool(processes) as pool:
         barrier = manager.Barrier(processes)
         parts = [(specs, snaps[k::processes], every, barrier) for k in range(processes)]
         done = pool.starmap(_replay_part, parts)
-    return sum(steps for steps, _ in done) / max(seconds for _, seconds in done)
+    steps = sum(s for s, _, _ in done)
+    return steps / max(w for _, w, _ in done), sum(c for _, _, c in done) / steps
+
+
+def replay_batch(specs, snaps, every, nthread, nsim=512):
+    """The snapshots stepped by one persistent mujoco.batch.Batch per scene, `nsim` at a time,
+    one step per call (as the engine steps), torques held; steps/s of the step calls."""
+    by_scene = collections.defaultdict(list)
+    for index, state in snaps:
+        by_scene[_scene_key(specs, index)].append((index, state))
+    steps, seconds = 0, 0.0
+    for key, jobs in by_scene.items():
+        sims = cpu_engine._Sims(key, min(nsim, len(jobs)), nthread)
+        m = sims.trial_model
+        for start in range(0, len(jobs), sims.nsim):
+            chunk = jobs[start : start + sims.nsim]
+            for sim, (index, state) in enumerate(chunk):
+                scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
+                scene.set_grasp(m, *specs.grasp_error[index])
+                scene.set_friction(m, specs.friction[index])
+                for name, values in sims.fields.items():
+                    values[sim] = getattr(m, name)
+                sims.state[sim] = state
+            ids = np.arange(len(chunk), dtype=np.int32)
+            sims.forward(ids)
+            begin = time.perf_counter()
+            for _ in range(every):
+                sims.batch.step(ids, stage=cpu_engine.STAGE_VEL)
+            seconds += time.perf_counter() - begin
+            steps += len(chunk) * every
+    return steps / seconds
 
 
 class _Timers:
@@ -134,53 +172,56 @@ class _Timers:
         return self.total[name] - self.calls[name] * self.overhead
 
 
+_PARTS = {
+    "step": "`Batch.step` (the physics, C)",
+    "loads": "loading trials: `start_trial`, `Batch.forward`, skill constants",
+    "measure": "gathering the bound fields of the live rows",
+    "jacobians": "Jacobian and its derivative from cdof, cdof_dot (NumPy)",
+    "ended": "end checks and results",
+    "wrench": "the wrench: F/T pipeline, damping, contact metrics (`_Lane._sense`)",
+    "settle": "settle test (`settle_observe`, `settle_close`)",
+    "controller": "`skill_torque`, the batched controller",
+}
+
+
 def profile_parts(specs, params, config):
-    """µs per env-step by part of one batch in this process, and the controller's batch."""
+    """µs per env-step by part of one lane in this process."""
     timers = _Timers()
-    batch = cpu_engine._Batch
+    lane = cpu_engine._Lane
     parts = [
-        (mujoco, "mj_step1", "step1"),
-        (mujoco, "mj_step2", "step2"),
-        (batch, "_sense", "sense"),
-        (batch, "_end_trials", "end"),
-        (cpu_engine, "wrench_in_goal_frame", "wrench"),
+        (mujoco.batch.Batch, "step", "step"),
+        (lane, "_load", "loads"),
+        (cpu_engine._Sims, "forward", "loads"),
+        (lane, "_measure", "measure"),
+        (cpu_engine, "jacobians", "jacobians"),
+        (lane, "_ended", "ended"),
+        (lane, "_finish", "ended"),
+        (lane, "_sense", "wrench"),
+        (cpu_engine, "settle_observe", "settle"),
+        (cpu_engine, "settle_close", "settle"),
         (cpu_engine, "skill_torque", "controller"),
     ]
     for owner, attr, name in parts:
         timers.patch(owner, attr, name)
-    sense_in_end = [0.0]
-    end = batch._end_trials
-
-    def end_trials(self, n, source):  # the rows it refills are sensed inside it
-        before = timers.total["sense"]
-        try:
-            return end(self, n, source)
-        finally:
-            sense_in_end[0] += timers.total["sense"] - before
-
-    batch._end_trials = end_trials
     try:
         start = time.perf_counter()
-        result = cpu_engine.run_trials(specs, params, config, workers=1)
+        result = cpu_engine.run_trials(specs, params, config, threads=1)
         wall = time.perf_counter() - start
     finally:
         timers.restore()
     steps = int(result.steps.sum())
-    net = {k: timers.net(k) for k in ("step1", "step2", "sense", "end", "wrench", "controller")}
-    shares = {
-        "mj_step1 + mj_step2 (physics)": net["step1"] + net["step2"],
-        "per-trial sensing (jacobians, mass matrix, copies)": net["sense"] - net["step1"],
-        "end checks, results, loading trials": net["end"] - sense_in_end[0],
-        "wrench_in_goal_frame": net["wrench"],
-        "skill_torque (controller)": net["controller"],
-    }
-    shares["the rest (torque writes, loop, Jd qd, peak force)"] = wall - sum(shares.values())
+    shares = {text: timers.net(name) for name, text in _PARTS.items()}
+    shares["the rest: torque writes, Jd qd, peak force, row bookkeeping"] = wall - sum(
+        shares.values()
+    )
     calls = timers.calls["controller"]
     lines = [f"{k}: {1e6 * v / steps:.2f}" for k, v in shares.items()]
     lines.append(f"total: {1e6 * wall / steps:.2f} ({steps / wall:,.0f} steps/s)")
     lines.append(
         f"controller: {calls} calls, {steps / calls:.1f} trials per call on average, "
-        f"{1e6 * net['controller'] / calls:.0f} µs per call"
+        f"{1e6 * timers.net('controller') / calls:.0f} µs per call; the NumPy pass (all but "
+        f"the physics and loads): {1e6 * (wall - shares[_PARTS['step']]) / calls:.0f} µs per "
+        "control period"
     )
     return lines
 
@@ -199,10 +240,20 @@ def time_mjx(specs, params, config, batch):
     return result, elapsed, first - elapsed, jax.devices()[0].device_kind
 
 
+def _row(*cells):
+    out = []
+    for c in cells:
+        if isinstance(c, float):
+            out.append(f"{c:,.0f}" if c > 100 else f"{c:.2f}")
+        else:
+            out.append(str(c))
+    return "| " + " | ".join(out) + " |"
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--trials", type=int, default=200)
-    p.add_argument("--workers", type=int, default=cpu_engine.available_cores())
+    p.add_argument("--trials", type=int, default=1000)
+    p.add_argument("--threads", type=int, default=cpu_engine.available_cores())
     p.add_argument("--replay-every", type=int, default=50)
     p.add_argument("--time-limit", type=float, default=10.0, help="simulated s per trial")
     p.add_argument("--mjx-trials", type=int, default=8, help="0 skips the mjx engine")
@@ -213,87 +264,67 @@ def main() -> None:
     args = p.parse_args()
 
     task = TaskConfig(shapes=("square",), linear_error=0.003, angular_error=np.deg2rad(4.0))
-    config = TrialConfig(time_limit_s=args.time_limit)
+    full = TrialConfig(time_limit_s=args.time_limit, end_settled=False)
     specs = sample_trials(task, 0, args.trials)
     params = as_controller_params(baseline_params(), len(specs))
     warm = specs.take(np.arange(4))
-    cpu_engine.run_trials(warm, params, config, workers=1)  # warm-up
-    start = time.perf_counter()
-    cpu_engine.run_trials(warm, params, config, workers=args.workers)  # starts the pool
-    first_call = time.perf_counter() - start
+    cpu_engine.run_trials(warm, params, full, threads=args.threads)  # warm-up
 
-    snaps = record_states(specs, params, config, args.replay_every)
+    snaps = record_states(specs, params, full, args.replay_every)
+    replayed = f"{len(snaps)} snapshots x {args.replay_every} steps"
     rows, notes = [], [f"load average before: {os.getloadavg()[0]:.2f}"]
-    for workers in sorted({1, args.workers}):
+    for threads in sorted({1, args.threads}):
         # Best of three: one replay lasts about a second on this machine, which is noisy.
-        ceiling = max(replay(specs, snaps, args.replay_every, workers) for _ in range(3))
+        ceiling, ceiling_cpu = max(
+            replay(specs, snaps, args.replay_every, threads) for _ in range(3)
+        )
+        in_batch = max(replay_batch(specs, snaps, args.replay_every, threads) for _ in range(2))
         # Best of `--repeat` too: other jobs on a shared machine come and go.
-        result, wall = min(
-            (time_engine(specs, params, config, workers) for _ in range(args.repeat)),
+        result, wall, cpu = min(
+            (time_engine(specs, params, full, threads) for _ in range(args.repeat)),
             key=lambda run: run[1],
         )
-        rate = int(result.steps.sum()) / wall
-        slots = min(cpu_engine.SLOTS_PER_THREAD, -(-len(specs) // workers))
-        rows.append(
-            (
-                "mujoco",
-                cpu_name(),
-                f"{len(specs)} ({slots} slots)",
-                workers,
-                "-",
-                rate,
-                len(specs) / wall,
-                f"{100 * rate / ceiling:.0f} % of ceiling",
-                result.summary(),
-            )
+        steps = int(result.steps.sum())
+        rate, cpu_step = steps / wall, cpu / steps
+        slots = min(cpu_engine.SLOTS_PER_THREAD, -(-len(specs) // threads))
+        ratio = (
+            f"**{100 * rate / ceiling:.0f} %** of ceiling; CPU {1e6 * cpu_step:.2f} µs/step, "
+            f"{100 * ceiling_cpu / cpu_step:.0f} % of the ceiling's"
         )
-        replayed = f"{len(snaps)} snapshots x {args.replay_every} steps"
-        rows.append(
-            ("bare mj_step (ceiling)", cpu_name(), len(snaps), workers, "-", ceiling, "-", "",
-             replayed)
-        )  # fmt: skip
-        overhead = call_overhead(specs, params, workers)
-        notes.append(
-            f"{workers} process(es): {1e3 * overhead:.1f} ms per call of 2 one-step trials"
-        )
+        batch = f"{len(specs)} ({slots} per thread)"
+        rows.append(_row("mujoco", cpu_name(), batch, threads, rate, len(specs) / wall, ratio,
+                         result.summary()))  # fmt: skip
+        bare = f"CPU {1e6 * ceiling_cpu:.2f} µs/step"
+        rows.append(_row("bare mj_step (ceiling)", cpu_name(), len(snaps), f"{threads} processes",
+                         ceiling, "-", bare, replayed))  # fmt: skip
+        rows.append(_row("bare `Batch.step`", cpu_name(), len(snaps), threads, in_batch, "-",
+                         f"{100 * in_batch / ceiling:.0f} % of ceiling",
+                         f"{replayed}, 512 simulations per batch, one step per call"))  # fmt: skip
+        overhead = call_overhead(specs, params, threads)
+        notes.append(f"{threads} thread(s): {1e3 * overhead:.1f} ms per call of 2 one-step trials")
+    early, wall, _ = time_engine(specs, params, full.replace(end_settled=True), args.threads)
+    rate = int(early.steps.sum()) / wall
+    rows.append(_row("mujoco, early ending", cpu_name(), f"{len(specs)}", args.threads, rate,
+                     len(specs) / wall, f"{100 * rate / ceiling:.0f} % of ceiling",
+                     early.summary()))  # fmt: skip
     notes.append(f"load average after: {os.getloadavg()[0]:.2f}")
-    notes.append(f"first call on {args.workers} processes (starts them): {first_call:.2f} s")
     if not args.no_profile:
-        notes += ["profile of one batch in this process, µs per env-step:"]
-        notes += ["  " + line for line in profile_parts(specs, params, config)]
+        notes += ["profile of one lane (threads=1), µs per env-step:"]
+        notes += ["  " + line for line in profile_parts(specs, params, full)]
     if args.mjx_trials:
         sub = specs.take(np.arange(args.mjx_trials))
         sub_params = as_controller_params(baseline_params(), len(sub))
         mjx_config = TrialConfig(time_limit_s=args.mjx_time_limit)
         mres, mwall, compile_s, device = time_mjx(sub, sub_params, mjx_config, args.mjx_trials)
-        mrate = mres.steps.sum() / mwall
         rows.append(
-            (
-                "mjx (JAX impl)",
-                device,
-                len(sub),
-                "-",
-                f"{compile_s:.0f} s",
-                mrate,
-                len(sub) / mwall,
-                "",
-                mres.summary(),
-            )
-        )
+            _row("mjx (JAX impl)", device, len(sub), "-", mres.steps.sum() / mwall,
+                 len(sub) / mwall, f"compile {compile_s:.0f} s", mres.summary())
+        )  # fmt: skip
     header = (
-        "| engine | device | trials (batch) | processes | compile | physics steps/s | "
-        "trials/s | ratio | outcome |\n|---|---|---|---|---|---|---|---|---|"
+        "| engine | device | trials (batch) | threads | physics steps/s | trials/s | ratio | "
+        "outcome |\n|---|---|---|---|---|---|---|---|"
     )
-    lines = [header]
-    for r in rows:
-        cells = [
-            f"{c:,.0f}"
-            if isinstance(c, float) and c > 100
-            else (f"{c:.2f}" if isinstance(c, float) else str(c))
-            for c in r
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    table = "\n".join(lines)
+    table = "\n".join([header, *rows])
     print(table)
     print("\n".join(notes))
     if args.write:
@@ -302,7 +333,7 @@ def main() -> None:
             f"{args.time_limit:g} s limit ({args.mjx_time_limit:g} s for mjx). Physics steps/s "
             "counts only steps of live trials; the ceiling replays the engine's own states with "
             "bare `mj_step` on as many processes. Command: `python benchmarks/trials.py --write` "
-            f"(--trials {args.trials}, --workers {args.workers}, --mjx-trials {args.mjx_trials})."
+            f"(--trials {args.trials}, --threads {args.threads}, --mjx-trials {args.mjx_trials})."
             f"\n\n{table}\n\n"
         )
         write_section(ROOT / "BENCHMARKS.md", "## Trial engines", section)

@@ -1,7 +1,15 @@
 """The command-line boundary every CLI shares: bad input is one line on stderr and exit status 2.
 
     parser = cli.Parser(prog="eval.py", description=...)   # argparse errors: one line, exit 2
-    return cli.fail(PROG, exc)                             # a caught error: one line, returns 2
+    parser.add_argument("--size", type=cli.SIZE_MM, ...)   # a documented range, in the flag's unit
+
+    @cli.entry(PROG)                                       # ValueError / OSError anywhere: one
+    def main(argv=None) -> int: ...                        # line, exit 2; Ctrl-C: one line, 130
+
+The output location of every CLI follows the same rules (`check_apart`, `move_aside`,
+`prepare_dir`, `write_atomic`): it is checked and created before any work, it is never one of the
+command's inputs, results are written atomically as they are produced, and an earlier result is
+replaced only with --force, which moves it aside (NAME.replaced-YYYYmmdd-HHMMSS), never deletes it.
 
 Imports nothing of the package, so a CLI can parse its arguments before importing MuJoCo or JAX.
 """
@@ -9,23 +17,243 @@ Imports nothing of the package, so a CLI can parse its arguments before importin
 from __future__ import annotations
 
 import argparse
+import functools
+import math
+import os
+import re
 import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
 
 EXIT_USAGE = 2  # bad input, as argparse
 EXIT_INTERRUPTED = 130  # Ctrl-C (128 + SIGINT)
 # What a user can cause (a bad value, an unreadable or unwritable path): one line, never a trace.
 USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError)
+_SHOWN = 60  # characters of a bad value quoted in a message
+
+
+def _shown(text) -> str:
+    text = repr(text) if isinstance(text, str) else f"{text:g}"
+    return text if len(text) <= _SHOWN else text[: _SHOWN - 5] + "...'"
+
+
+def message(error) -> str:
+    """One line for an exception or a message: OS errors name their file."""
+    if isinstance(error, OSError) and error.strerror:
+        where = " -> ".join(str(f) for f in (error.filename, error.filename2) if f is not None)
+        error = f"{where}: {error.strerror}" if where else error.strerror
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def fail(prog: str, error) -> int:
+    """Print `PROG: error: MESSAGE` (one line) on stderr and return the usage exit status."""
+    print(f"{prog}: error: {message(error)}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def note(prog: str, text: str) -> None:
+    """A one-line notice on stderr (`PROG: TEXT`): what --force moved aside, a fallback."""
+    print(f"{prog}: {' '.join(text.split())}", file=sys.stderr)
+
+
+def entry(prog: str, interrupted: str = "interrupted") -> Callable:
+    """Decorate a CLI's main(argv) -> int: every user error is one line and exit status 2, an
+    argparse exit returns its status, Ctrl-C is one line and 130. Other exceptions (bugs) keep
+    their traceback."""
+
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def run(argv=None) -> int:
+            try:
+                return main(argv)
+            except SystemExit as exc:  # argparse: --help (0) or Parser.error (2, printed)
+                return exc.code if isinstance(exc.code, int) else fail(prog, exc.code)
+            except USER_ERRORS as exc:
+                return fail(prog, exc)
+            except KeyboardInterrupt:
+                print(f"{prog}: {interrupted}", file=sys.stderr)
+                return EXIT_INTERRUPTED
+
+        return run
+
+    return wrap
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse whose errors are one stderr line, `PROG: error: MESSAGE`, and exit status 2."""
+    """argparse whose errors are one stderr line, `PROG: error: MESSAGE`, and exit status 2.
+
+    A flag whose type is a range (`integer`, `number`) gets its range appended to its help."""
 
     def error(self, message: str):
+        # "argument --size: must be ..." reads "--size must be ..."
+        message = re.sub(r"^argument (\S+?)(?:/\S+)?: (?=must )", r"\1 ", message)
         raise SystemExit(fail(self.prog, message))
 
+    def add_argument(self, *args, **kwargs):
+        text = getattr(kwargs.get("type"), "range_text", None)
+        if text and kwargs.get("help") != argparse.SUPPRESS:
+            kwargs["help"] = f"{kwargs['help']}; {text}" if kwargs.get("help") else text
+        return super().add_argument(*args, **kwargs)
 
-def fail(prog: str, message) -> int:
-    """Print `PROG: error: MESSAGE` (one line) on stderr and return the usage exit status."""
-    text = " ".join(str(message).split()) or type(message).__name__
-    print(f"{prog}: error: {text}", file=sys.stderr)
-    return EXIT_USAGE
+
+# -- numeric flags: one range per quantity, in the flag's own unit, the same in every CLI ---------
+
+
+def integer(lo: int, hi: int, why: str = "") -> Callable[[str], int]:
+    """argparse type: an integer in lo..hi (inclusive)."""
+    text = f"{lo:,}..{hi:,}" + (f" ({why})" if why else "")
+
+    def parse(value: str) -> int:
+        try:
+            number = int(str(value).strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be an integer in {text}, got {_shown(value)}"
+            ) from None
+        if not lo <= number <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer in {text}, got {number}")
+        return number
+
+    parse.range_text = f"an integer in {text}"
+    return parse
+
+
+def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite number in [lo, hi] (or (lo, hi] with lo_open), in `unit`."""
+    text = f"{'(' if lo_open else '['}{lo:g}, {hi:g}] {unit}"
+
+    def parse(value: str) -> float:
+        try:
+            x = float(str(value).strip())
+        except ValueError:
+            x = math.nan
+        ok = math.isfinite(x) and (lo < x if lo_open else lo <= x) and x <= hi
+        if not ok:
+            got = _shown(value) if not math.isfinite(x) else f"{x:g}"
+            raise argparse.ArgumentTypeError(f"must be a number in {text}, got {got}")
+        return x
+
+    parse.range_text = f"a number in {text}"
+    return parse
+
+
+def cores() -> int:
+    """Cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+# The ranges of the flags several CLIs share.
+SIZE_MM = number(10.0, 100.0, "mm")  # characteristic size S (the paper: 25, 50, 60 mm)
+LINEAR_MM = number(0.0, 50.0, "mm")  # +- localization x, y and grasp z error range
+ANGULAR_DEG = number(0.0, 45.0, "deg")  # +- localization yaw and grasp tilt range
+TIME_LIMIT_S = number(0.01, 600.0, "s")  # simulated time per trial (the paper's: 60 s)
+SEED = integer(0, 2**32 - 1)  # NumPy's and JAX's seeds
+TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
+WORKERS = integer(1, cores(), "the cores this process may use")  # engine worker processes
+MAX_RANGES = 10_000  # error ranges in one evaluation grid (the paper's has 350)
+MAX_AXIS = 1_000  # values of one grid axis
+MAX_GRID_TRIALS = 10_000_000  # trials in one evaluation grid (the paper's has 70,000)
+
+
+# -- the output location ----------------------------------------------------------------------
+
+
+def nonempty_path(text: str) -> Path:
+    """argparse type of a path flag (--out, --policy, ...): a non-empty path."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError("must be a path, got an empty string")
+    if "\0" in text:
+        raise argparse.ArgumentTypeError("must be a path without NUL characters")
+    return Path(text)
+
+
+def _inside(path: Path, other: Path) -> bool:
+    return path == other or other in path.parents
+
+
+def check_apart(out, sources: dict[str, object | None], out_flag: str = "--out") -> None:
+    """ValueError if `out` is, contains or lies inside an input of the command (by flag)."""
+    mine = Path(out).resolve()
+    for flag, source in sources.items():
+        if source is None or str(source) == "baseline":
+            continue
+        theirs = Path(source).resolve()
+        if _inside(mine, theirs) or _inside(theirs, mine):
+            how = "is" if mine == theirs else "overlaps"
+            raise ValueError(
+                f"{out_flag} {out} {how} the {flag} {source}: an output never replaces an input; "
+                f"choose another {out_flag}"
+            )
+
+
+def move_aside(path) -> Path:
+    """Rename `path` (a file or a directory) to NAME.replaced-YYYYmmdd-HHMMSS beside it (with a
+    -2, -3, ... suffix if taken); returns the new path. Nothing is deleted."""
+    path = Path(path)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    for k in range(1, 1000):
+        target = path.with_name(f"{path.name}.replaced-{stamp}" + (f"-{k}" if k > 1 else ""))
+        if not target.exists() and not target.is_symlink():
+            os.rename(path, target)
+            return target
+    raise ValueError(f"cannot move {path} aside: too many earlier copies beside it")
+
+
+def prepare_dir(path) -> Path:
+    """Create the directory `path` (and its parents) and prove that it is writable; OSError or
+    ValueError (one line) if not."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{path} exists and is not a directory")
+    path.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as e:
+        raise ValueError(f"cannot write in {path} ({e.strerror or e})") from None
+    return path
+
+
+def partial_path(path) -> Path:
+    """Where `path` is written before it is renamed into place (same suffix, hidden)."""
+    path = Path(path)
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+def write_atomic(path, data: bytes | str | Callable[[Path], object]) -> Path:
+    """Write `path` whole or not at all: into a partial file beside it, then rename. `data` is
+    the content, or a function that writes a given path (it keeps the suffix, for plotters)."""
+    path = Path(path)
+    tmp = partial_path(path)
+    try:
+        if callable(data):
+            data(tmp)
+        else:
+            with open(tmp, "wb") as f:
+                f.write(data.encode() if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def refuse_or_move(paths, force: bool, prog: str, hint: str = "") -> None:
+    """Before any work: ValueError if any of `paths` (earlier results) exists, unless `force`,
+    which moves each aside (and says where)."""
+    found = [Path(p) for p in paths if Path(p).exists() or Path(p).is_symlink()]
+    if not found:
+        return
+    if not force:
+        names = ", ".join(str(p) for p in found)
+        raise ValueError(
+            f"{names} already exist{'s' if len(found) == 1 else ''}: choose another --out, or "
+            f"pass --force to move {'it' if len(found) == 1 else 'them'} aside{hint}"
+        )
+    for p in found:
+        note(prog, f"--force: moved {p} aside to {move_aside(p)}")

@@ -78,7 +78,7 @@ def test_bad_replay_is_one_clear_line(eval_dir, tmp_path, capsys, extra, message
         (["--replay", "NO_DIR", "--range", "0"], "holds no config.json"),
         (["--range", "0"], "--range and --trial need --replay EVAL_DIR"),
         (["--policy", "NO_DIR"], "is not a directory"),
-        (["--size", "-5"], "--size must be a positive number of mm"),
+        (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
     ],
 )
 def test_bad_input_is_one_clear_line(tmp_path, capsys, argv, message):

@@ -352,9 +352,9 @@ def test_learned_policy_directory(tmp_path):
         ({"--policy": "EMPTY_DIR"}, "holds no policy.npz"),
         ({"--linear-mm": ""}, "--linear-mm is empty"),
         ({"--angular-deg": "5:1:1"}, "--angular-deg is empty"),
-        ({"--trials": "-3"}, "--trials must be a positive integer"),
+        ({"--trials": "-3"}, "--trials must be an integer in 1..100,000, got -3"),
         ({"--shape": "hexagon"}, "unknown shape 'hexagon'"),
-        ({"--linear-mm": "80"}, "linear_mm must lie in [0, 50]"),
+        ({"--linear-mm": "80"}, "--linear-mm ranges must lie in [0, 50] mm, got 80"),
         ({"--compare": "NO_DIR"}, "is not a directory"),
     ],
 )
@@ -392,3 +392,22 @@ def test_cli_script(tmp_path):
     assert run.stderr.strip().splitlines() == [
         f"eval.py: error: {tmp_path} holds no policy.npz: not a run directory with a policy"
     ]
+
+
+def test_evaluations_from_before_early_ending_read_as_full_time_limit(tmp_path, capsys):
+    """A config.json without full_time_limit (written before early ending) ran every failure to
+    the time limit: it reads so, and resuming it needs --full-time-limit."""
+    import json
+
+    out = tmp_path / "old"
+    assert evaluation.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
+    assert "every failure ran to the time limit" in (out / "summary.md").read_text()
+    doc = json.loads((out / "config.json").read_text())
+    del doc["config"]["full_time_limit"]
+    (out / "config.json").write_text(json.dumps(doc))
+    config, _ = evaluation.read_eval_dir(out)
+    assert config.full_time_limit and not config.trial_config().end_settled
+    assert evaluation.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert evaluation.main([*TINY, "--out", str(out)]) == 2
+    assert "full_time_limit: True there, False now" in capsys.readouterr().err

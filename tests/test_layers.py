@@ -26,7 +26,9 @@ RANKS = {
     "robot": 6,
     "vision": 6,
 }
-PEER_IMPORTS: set[tuple[str, str]] = set()
+PEER_IMPORTS: set[tuple[str, str]] = {
+    ("vision", "robot"),  # the localizer returns robot.runtime.HoleEstimate
+}
 
 # Modules the robot's computer runs: importable with neither JAX nor MuJoCo installed.
 ROBOT_SIDE = ("skill", "policy", "robot")

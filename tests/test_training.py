@@ -83,11 +83,22 @@ def test_run_dir_holds_the_promised_files(tiny_run):
     assert TrainConfig.from_json(json.loads((out / "config.json").read_text())) == TINY
     metrics = read_table(out / "metrics.csv")
     assert metrics["trials"] == [16.0, 32.0, 48.0]
+    assert metrics["settled_rate"] == [0.0, 0.0, 0.0]  # 0.6 s trials cannot settle
+
     assert read_table(out / "trials.csv")["trial"] == list(range(48))
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
     with np.load(out / "policy.npz", allow_pickle=False) as npz:
         assert all(npz[k].dtype == np.float32 for k in npz.files)
+
+
+def test_full_time_limit_flag():
+    from mjx_peg.learn import cli
+
+    args = cli.parser().parse_args([*TINY_ARGS, "--full-time-limit"])
+    config = cli.resolve_config(args)
+    assert config.full_time_limit and not config.trial().end_settled
+    assert TINY.trial().end_settled  # the default: settled failures end early
 
 
 def test_numpy_policy_equals_jax_deterministic_action(tiny_run):

@@ -1,6 +1,7 @@
 """Run trials on either physics engine: `run_trials(specs, params, engine=...)`.
 
-`mujoco`: C MuJoCo on CPU worker processes (the default without an accelerator). `mjx`: the
+`mujoco`: C MuJoCo on MuJoCo's batched thread pool (`mujoco.batch`), the controller batched in
+NumPy (the default without an accelerator). `mjx`: the
 whole trial jitted and vmapped in MJX (GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator.
 The engines are imported lazily so that the CPU engine never pays for importing JAX.
 """
@@ -41,8 +42,8 @@ def run_trials(
     """Run every trial in `specs` and return the results in spec order.
 
     params: `ControllerParams` (batched or not) or physical 38-vectors, shape (38,) or (B, 38).
-    engine_options: `workers` (processes, default every core), `threads`, `slots_per_thread`
-    (mujoco); `batch`, `recycle_every` (mjx).
+    engine_options: `threads` (lanes, default every core; `workers` is its former name),
+    `slots_per_thread`, `batch_threads`, `persistent` (mujoco); `batch`, `recycle_every` (mjx).
     """
     name = resolve_engine(engine)
     if not isinstance(specs, TrialSpec):

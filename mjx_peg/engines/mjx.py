@@ -28,8 +28,11 @@ from mjx_peg.engines.trial import (
     control_config,
     destination,
     fitted_basis,
+    is_settled,
     is_success,
     sensor_params,
+    settle_start,
+    settle_update,
     trial_reward,
 )
 from mjx_peg.skill import sensor
@@ -57,6 +60,7 @@ _OUTCOMES = {
     "start_distance": "start_distance",
     "chatter": "chatter",
     "protective_stop": "stop",
+    "settled": "settled",
 }
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
@@ -181,6 +185,8 @@ class _Program:
             ended=jnp.zeros((), bool),
             success=jnp.zeros((), bool),
             unstable=jnp.zeros((), bool),
+            settled=jnp.zeros((), bool),
+            settle=settle_start((), jnp),
             tip=tip,
             sensor=sp,
             sensor_state=sensor.initial_state(sp, cfg.sensor.max_delay_steps + 1, tare.dtype),
@@ -205,7 +211,8 @@ class _Program:
         success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height) & ~stop
         finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))
         unstable = ~finite | jnp.any(jnp.abs(d.qvel) > cfg.max_joint_speed)
-        ended_now = ~slot["ended"] & (success | unstable | stop | (step >= cfg.max_steps))
+        settled = is_settled(slot["settle"], cfg) & ~success & ~unstable & ~stop
+        ended_now = ~slot["ended"] & (success | unstable | stop | settled | (step >= cfg.max_steps))
         live = ~(slot["ended"] | ended_now)
         # The F/T pipeline, the compliance damping and the contact metrics (as the C engine).
         true = external_wrench(force, torque, slot["tare"])
@@ -236,6 +243,7 @@ class _Program:
         )
         u = skill_torque(self.control, skill, self.basis, meas)
         u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
+        d_qvel = d.qvel  # this period's, for the settle test
         d = step2(m, d.replace(ctrl=u))
 
         def keep(new, old):  # carried state advances only while the trial runs
@@ -248,6 +256,7 @@ class _Program:
             ended=slot["ended"] | ended_now,
             success=jnp.where(ended_now, success & ~unstable, slot["success"]),
             unstable=jnp.where(ended_now, unstable, slot["unstable"]),
+            settled=jnp.where(ended_now, settled, slot["settled"]),
             tip=jnp.where(live | ended_now, tip, slot["tip"]),
             sensor_state=keep(sensor_state, slot["sensor_state"]),
             coupled=keep(coupled, slot["coupled"]),
@@ -256,6 +265,8 @@ class _Program:
             chatter=jnp.where(ended_now, chatter, slot["chatter"]),
             stop=slot["stop"] | (live & (force_mag > cfg.max_tool_force)),
         )
+        if cfg.end_settled:
+            slot["settle"] = settle_update(slot["settle"], step, d_qvel, tcp_pos, coupled, cfg)
         return d, slot
 
     # --- the batch ----------------------------------------------------------------------------
@@ -278,6 +289,7 @@ class _Program:
         out = dict(
             success=jnp.zeros(n, bool),
             unstable=jnp.zeros(n, bool),
+            settled=jnp.zeros(n, bool),
             steps=jnp.zeros(n, jnp.int32),
             peak_force=jnp.zeros(n),
             tip=jnp.zeros((n, 3)),
@@ -345,6 +357,7 @@ def run_trials(
     out_arrays = {
         "success": np.zeros(n, bool),
         "unstable": np.zeros(n, bool),
+        "settled": np.zeros(n, bool),
         "steps": np.zeros(n, np.int64),
         "peak_force": np.zeros(n),
         "final_tip_pos": np.zeros((n, 3)),
@@ -360,6 +373,7 @@ def run_trials(
         out = jax.device_get(program.run(inputs))
         out_arrays["success"][rows] = out["success"]
         out_arrays["unstable"][rows] = out["unstable"]
+        out_arrays["settled"][rows] = out["settled"]
         out_arrays["steps"][rows] = out["steps"]
         out_arrays["peak_force"][rows] = out["peak_force"]
         out_arrays["final_tip_pos"][rows] = out["tip"]
@@ -384,6 +398,7 @@ def run_trials(
         reward=np.asarray(reward),
         unstable=out_arrays["unstable"],
         steps=out_arrays["steps"],
+        settled=out_arrays["settled"],
         chatter=out_arrays["chatter"],
         protective_stop=out_arrays["protective_stop"],
     )

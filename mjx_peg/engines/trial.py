@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,10 +59,41 @@ class TrialConfig:
     # skill/control_step.py: loop gains up to 190, latency up to 2 periods, 25-100 Hz filters).
     coupling_time_constant: float = 0.75
     chatter_window_s: float = 1.0  # s: the chatter metric averages the last window of a trial
+    # A failure whose outcome can no longer change ends at once, flagged `settled` (see
+    # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
+    # greatest value) of the tcp position, the wrench the compliance sees (after the F/T pipeline
+    # and the damping's low-pass: a filtered wrench still moving is not settled) and the fastest
+    # joint speed over a window of settle_window_s has matched the previous window's within
+    # settle_tip_m, settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times
+    # in a row: the arm is at rest, or repeats the same oscillation (a peg chattering on the board
+    # top).
+    # end_settled=False runs every failure to the time limit, the paper's protocol.
+    end_settled: bool = True
+    # s: twice the DMP's 2 s movement (dmp.DMPConfig.duration); the phase is then
+    # exp(-alpha_s 4 / tau) = 3e-4 at the defaults
+    settle_after_s: float = 4.0
+    settle_window_s: float = 1.0
+    settle_windows: int = 1
+    settle_tip_m: float = 1e-5
+    settle_force_n: float = 0.5
+    settle_moment_nm: float = 0.05
+    settle_joint_speed: float = 0.05  # rad/s
 
     def __post_init__(self):
-        for name in ("time_limit_s", "timestep", "success_height", "max_joint_speed",
-                     "max_tool_force", "chatter_window_s"):  # fmt: skip
+        positive = ("time_limit_s", "timestep", "success_height", "max_joint_speed",
+                    "settle_window_s", "settle_joint_speed", "settle_tip_m", "settle_force_n",
+                    "settle_moment_nm", "max_tool_force", "chatter_window_s")  # fmt: skip
+        if not (math.isfinite(self.settle_after_s) and self.settle_after_s >= 0):
+            raise ValueError(
+                f"TrialConfig.settle_after_s must be a number >= 0, got {self.settle_after_s!r}"
+            )
+        if isinstance(self.settle_windows, bool) or not (
+            isinstance(self.settle_windows, int) and self.settle_windows >= 1
+        ):
+            raise ValueError(
+                f"TrialConfig.settle_windows must be an integer >= 1, got {self.settle_windows!r}"
+            )
+        for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"TrialConfig.{name} must be a positive number, got {value!r}")
@@ -91,6 +123,11 @@ class TrialConfig:
             return 0.0
         return math.exp(-self.timestep / self.coupling_time_constant)
 
+    @property
+    def settle_steps(self) -> int:
+        """Control periods in a settle window."""
+        return max(1, int(round(self.settle_window_s / self.timestep)))
+
     def replace(self, **changes) -> TrialConfig:
         return dataclasses.replace(self, **changes)
 
@@ -106,6 +143,8 @@ class TrialResult:
     reward: np.ndarray  # (B,) paper scale (38000 on success)
     unstable: np.ndarray  # (B,) bool: physics blew up or joints beyond max_joint_speed (failed)
     steps: np.ndarray  # (B,) physics steps simulated
+    # (B,) bool: a failure ended early because it had settled (TrialConfig.end_settled)
+    settled: np.ndarray
     # (B,) N: mean |F_k - F_(k-1)| of the true axial contact force (goal z, no sensor) over the
     # last TrialConfig.chatter_window_s of the trial (all of it if shorter). A force that
     # alternates by 100 N every step reads 100; a smooth press, a few tenths.
@@ -140,6 +179,7 @@ class TrialResult:
             f"{int(ok.sum())}/{n} succeeded ({100.0 * ok.mean():.1f} %), "
             f"median time {median:.2f} s, {int(self.unstable.sum())} unstable, "
             f"{int(self.protective_stop.sum())} protective stops, "
+            f"{int(self.settled.sum())} settled, "
             f"mean reward {float(self.reward.mean()):.0f}; {self.contact_summary()}"
         )
 
@@ -215,6 +255,78 @@ def chatter_of(ring: np.ndarray, steps) -> np.ndarray:
     ring = np.atleast_2d(ring)
     count = np.clip(np.asarray(steps) - 1, 0, ring.shape[-1])
     return np.where(count > 0, ring.sum(axis=-1) / np.maximum(count, 1), 0.0)
+
+
+class SettleState(NamedTuple):
+    """Per trial, the envelopes `settle_update` compares (a pytree under JAX)."""
+
+    low: (
+        object  # (..., 10) least [tcp position (3), wrench (6), fastest joint speed] in this window
+    )
+    high: object  # (..., 10) greatest
+    last_low: object  # (..., 10) of the previous window
+    last_high: object  # (..., 10)
+    matched: object  # (...,) int: windows in a row whose envelope matched the previous one
+
+
+def settle_start(batch_shape=(), xp=np) -> SettleState:
+    """The state of trials at their start."""
+    inf = xp.full((*batch_shape, 10), math.inf)
+    return SettleState(inf, -inf, inf, -inf, xp.zeros(batch_shape, dtype=xp.int32))
+
+
+def settle_observe(state: SettleState, qvel, tcp_pos, wrench) -> SettleState:
+    """The state with this control period's joint speeds qvel (..., n), tcp position (..., 3)
+    (what a robot measures; the peg is rigid on the flange) and sensed wrench (..., 6) in the
+    current window's envelope."""
+    xp = tcp_pos.__array_namespace__()
+    speed = xp.max(xp.abs(qvel), axis=-1, keepdims=True)
+    x = xp.concat([tcp_pos, wrench, speed], axis=-1)
+    return state._replace(low=xp.minimum(state.low, x), high=xp.maximum(state.high, x))
+
+
+def settle_close(state: SettleState, step, config: TrialConfig, period: int = 1) -> SettleState:
+    """The state after control period `step` (physics steps since the trial's start) has been
+    observed, the next one `period` steps later: when this one closes a window, the window's
+    envelope is compared with the previous window's (if that one started at or after
+    settle_after_s) and becomes the previous window."""
+    xp = state.low.__array_namespace__()
+    w = config.settle_steps
+    tol = xp.asarray(
+        [config.settle_tip_m] * 3 + [config.settle_force_n] * 3 + [config.settle_moment_nm] * 3
+        + [config.settle_joint_speed], dtype=state.low.dtype,
+    )  # fmt: skip
+    same = xp.all(
+        (xp.abs(state.low - state.last_low) <= tol) & (xp.abs(state.high - state.last_high) <= tol),
+        axis=-1,
+    )
+    window = step // w
+    first = (window - 1) * w  # the previous window's first step
+    counted = (window >= 1) & (first * config.timestep >= config.settle_after_s - 1e-9)
+    closes = (step + period) // w > window
+    matched = xp.where(closes, xp.where(same & counted, state.matched + 1, 0), state.matched)
+    c = closes[..., None]
+    return SettleState(
+        xp.where(c, math.inf, state.low),
+        xp.where(c, -math.inf, state.high),
+        xp.where(c, state.low, state.last_low),
+        xp.where(c, state.high, state.last_high),
+        matched,
+    )
+
+
+def settle_update(state: SettleState, step, qvel, tcp_pos, wrench, config, period: int = 1):
+    """`settle_close` after `settle_observe`: one control period of the settle test (see
+    TrialConfig.end_settled). Windows are steps [k W, (k + 1) W) of the trial,
+    W = config.settle_steps. Written over the array-API namespace of its inputs, like the
+    controller: the engines and the robot runtime share it; it acts on each trial alone.
+    """
+    return settle_close(settle_observe(state, qvel, tcp_pos, wrench), step, config, period)
+
+
+def is_settled(state: SettleState, config: TrialConfig):
+    """(...,) bool: the trial has settled and ends (if config.end_settled)."""
+    return (state.matched >= config.settle_windows) & config.end_settled
 
 
 def as_controller_params(params, batch: int) -> ControllerParams:

@@ -15,36 +15,43 @@ from mjx_peg.world.task import TaskConfig, sample_trials
 PROG = "mjx-peg-baseline"
 
 
+@cli.entry(PROG)
 def main(argv=None) -> int:
     """Success and time of the hand-tuned baseline per shape at given errors."""
     p = cli.Parser(prog=PROG, description=main.__doc__)
-    p.add_argument("--shapes", default="circle,square,triangle")
-    p.add_argument("--size", type=float, default=50.0, help="characteristic size (mm)")
-    p.add_argument("--linear-mm", type=float, default=3.0)
-    p.add_argument("--angular-deg", type=float, default=4.0)
-    p.add_argument("--trials", type=int, default=100)
-    p.add_argument("--time-limit", type=float, default=60.0)
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
+    p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="characteristic size S")
+    p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=3.0, help="± linear error range")
+    p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=4.0, help="± angular error range")
+    p.add_argument("--trials", type=cli.TRIALS, default=100, help="per shape (default 100)")
+    p.add_argument(
+        "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial (default 60)"
+    )
+    p.add_argument("--seed", type=cli.SEED, default=1, help="default 1")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     args = p.parse_args(argv)
-    shapes = args.shapes.split(",")
+    shapes = [s.strip() for s in args.shapes.split(",") if s.strip()]
+    if not shapes:
+        p.error(f"--shapes is empty: choose from {', '.join(constants.SHAPES)}")
     for shape in shapes:
         if shape not in constants.SHAPES:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
-    if args.trials <= 0:
-        p.error("--trials must be positive")
-    try:
-        config = TrialConfig(time_limit_s=args.time_limit)
-        for shape in shapes:
-            task = TaskConfig.from_mm_deg((shape,), args.size, args.linear_mm, args.angular_deg)
-            specs = sample_trials(task, args.seed, args.trials)
-            result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
-            print(
-                f"{shape} {args.size:g} mm ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
-                f"{result.summary()}"
-            )
-    except cli.USER_ERRORS as exc:
-        return cli.fail(PROG, exc)
+    config = TrialConfig(time_limit_s=args.time_limit)
+    tasks = [
+        TaskConfig.from_mm_deg((shape,), args.size, args.linear_mm, args.angular_deg)
+        for shape in shapes
+    ]
+    from mjx_peg.world import mujoco_log
+
+    mujoco_log.send_to(None)  # no output directory: MuJoCo's warnings go nowhere
+    for shape, task in zip(shapes, tasks, strict=True):
+        specs = sample_trials(task, args.seed, args.trials)
+        result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
+        print(
+            f"{shape} {args.size:g} mm ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
+            f"{result.summary()}",
+            flush=True,
+        )
     return 0
 
 

@@ -37,41 +37,65 @@ _DEFAULTS = {
 }
 
 
+MAX_FRAMES = 24  # frames in the strip (320 px each)
+OUTPUTS = ("trial.png", "frames.png")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
     p.add_argument("--shape", choices=constants.SHAPES, help=f"default {d['shape']}")
     p.add_argument(
-        "--size", type=float, help=f"characteristic size S in mm (default {d['size']:g})"
+        "--size", type=cli.SIZE_MM, help=f"characteristic size S (default {d['size']:g})"
     )
     p.add_argument(
-        "--linear-mm", type=float, help=f"± linear error range (mm, default {d['linear_mm']:g})"
+        "--linear-mm",
+        type=cli.LINEAR_MM,
+        help=f"± linear error range (default {d['linear_mm']:g})",
     )
     p.add_argument(
         "--angular-deg",
-        type=float,
-        help=f"± angular error range (deg, default {d['angular_deg']:g})",
+        type=cli.ANGULAR_DEG,
+        help=f"± angular error range (default {d['angular_deg']:g})",
     )
-    p.add_argument("--seed", type=int, help=f"default {d['seed']}")
+    p.add_argument("--seed", type=cli.SEED, help=f"default {d['seed']}")
     p.add_argument(
-        "--time-limit", type=float, help=f"simulated seconds (default {d['time_limit']:g})"
+        "--time-limit",
+        type=cli.TIME_LIMIT_S,
+        help=f"simulated time (default {d['time_limit']:g})",
     )
-    p.add_argument("--policy", help="RUN_DIR holding policy.npz, or baseline (the default)")
+    p.add_argument(
+        "--policy",
+        type=str,
+        help="RUN_DIR holding policy.npz, or baseline (the default)",
+    )
     p.add_argument(
         "--replay",
-        type=pathlib.Path,
+        type=cli.nonempty_path,
         metavar="EVAL_DIR",
         help="replay a trial of this evaluation (its spec, policy and time limit)",
     )
-    p.add_argument("--range", type=int, help="with --replay: the range (grid.csv's first column)")
+    p.add_argument(
+        "--range",
+        type=cli.integer(0, cli.MAX_RANGES - 1),
+        help="with --replay: the range (grid.csv's first column)",
+    )
     p.add_argument(
         "--trial",
         default="0",
         help="with --replay: trial index in the range, or 'failure' / 'success' for "
         "the range's first such trial (default 0)",
     )
-    p.add_argument("--frames", type=int, default=6, help="frames in the strip (0: none)")
-    p.add_argument("--out", type=pathlib.Path, default=pathlib.Path("demo_out"))
+    p.add_argument(
+        "--frames", type=cli.integer(0, MAX_FRAMES), default=6, help="frames in the strip (0: none)"
+    )
+    p.add_argument("--out", type=cli.nonempty_path, default=pathlib.Path("demo_out"))
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace {' and '.join(OUTPUTS)} in --out: the earlier ones are moved aside "
+        "(NAME.replaced-DATE-TIME)",
+    )
     return p
 
 
@@ -86,12 +110,8 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
     for dest, value in _DEFAULTS.items():
         if getattr(args, dest) is None:
             setattr(args, dest, value)
-    if not (args.size > 0 and np.isfinite(args.size)):
-        raise ValueError(f"--size must be a positive number of mm, got {args.size}")
-    if args.linear_mm < 0 or args.angular_deg < 0:
-        raise ValueError("error ranges must be >= 0")
-    if not args.time_limit > 0:
-        raise ValueError("--time-limit must be positive")
+    if not args.policy:
+        raise ValueError("--policy must be a run directory or baseline, got an empty string")
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
@@ -165,8 +185,7 @@ def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: 
         trace["t"].append(step * config.timestep)
         trace["tip"].append(worker.tip_pos[0].copy())
         trace["wrench"].append(wrench[0].copy())
-        _, d, _ = worker.current[0]
-        last[:] = [(step * config.timestep, d.qpos.copy())]
+        last[:] = [(step * config.timestep, worker.qpos[0])]
         if frames and step % every == 0:
             snapshots.append(last[0])
 
@@ -207,15 +226,15 @@ def _plot(run: dict, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
-def _frames(run: dict, frames: int, path: pathlib.Path) -> None:
+def _frames(run: dict, frames: int) -> np.ndarray | None:
     """A strip of close-up frames around the hole at evenly spaced moments of the trial."""
     import mujoco
 
-    from mjx_peg.world.render import render_rgb, save_png
+    from mjx_peg.world.render import render_rgb
 
     specs, snaps = run["specs"], run["snapshots"]
     if not snaps:
-        return
+        return None
     model = scene.load_model(constants.SHAPES[int(specs.shape_id[0])], float(specs.size[0]))
     scene.set_board_pose(model, *specs.board_pos[0], specs.board_yaw[0])
     scene.set_grasp(model, *specs.grasp_error[0])
@@ -230,32 +249,53 @@ def _frames(run: dict, frames: int, path: pathlib.Path) -> None:
         data.qpos[:] = qpos
         mujoco.mj_forward(model, data)
         tiles.append(render_rgb(model, data, camera, 320, 320))
-    save_png(path, np.concatenate(tiles, axis=1))
+    return np.concatenate(tiles, axis=1)
 
 
 def _outcome(success, time_s) -> str:
     return f"{'success' if success else 'failure'} after {float(time_s):.3f} s"
 
 
+@cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    try:
-        if args.frames < 0:
-            raise ValueError("--frames must be >= 0")
-        if args.replay is None:
-            if args.range is not None or args.trial != "0":
-                raise ValueError("--range and --trial need --replay EVAL_DIR")
-            specs, vector, config, label = trial_from_args(args)
-            recorded = None
-        else:
-            specs, vector, config, label, recorded = trial_from_eval(args)
-    except cli.USER_ERRORS as exc:
-        return cli.fail(PROG, exc)
-    args.out.mkdir(parents=True, exist_ok=True)
+    if args.replay is None:
+        if args.range is not None or args.trial != "0":
+            raise ValueError("--range and --trial need --replay EVAL_DIR")
+        specs, vector, config, label = trial_from_args(args)
+        recorded = None
+    else:
+        specs, vector, config, label, recorded = trial_from_eval(args)
+    # The output location, before any work: never an input, nothing replaced without --force.
+    policy = None if args.replay is not None else args.policy
+    cli.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
+    outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
+    if args.out.is_dir() and not args.force:
+        cli.refuse_or_move(outputs, False, PROG)
+    if args.frames:
+        from mjx_peg.world import render
+
+        render.check_backend()  # or one line: before the trial runs
+    cli.prepare_dir(args.out)
+    cli.refuse_or_move(outputs, args.force, PROG)
+    if args.frames:
+        from mjx_peg.world import gl
+
+        if gl.fallback_note():
+            cli.note(PROG, f"warning: {gl.fallback_note()}")
+    from mjx_peg.world import mujoco_log
+
+    mujoco_log.send_to(args.out)
     run = run_demo(specs, vector, config, args.frames)
-    _plot(run, args.out / "trial.png")
-    _frames(run, args.frames, args.out / "frames.png")
-    print(f"{label}: {run['result'].summary()}; wrote {args.out}/trial.png and frames.png")
+    cli.write_atomic(outputs[0], lambda path: _plot(run, path))
+    wrote = [outputs[0].name]
+    strip = _frames(run, args.frames) if args.frames else None
+    if strip is not None:
+        from mjx_peg.world.render import save_png
+
+        cli.write_atomic(outputs[1], lambda path: save_png(path, strip))
+        wrote.append(outputs[1].name)
+    print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:
         return 0
     r = run["result"]

@@ -18,15 +18,16 @@ paper has numbers for the condition, paper_comparison.png.
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import hashlib
 import importlib
 import inspect
 import json
 import math
-import os
 import sys
 import time
+import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -67,18 +68,17 @@ DEFAULT_CHUNK_TRIALS = 1000  # trials per run_trials call: results saved this of
 CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
-_MAX_ERROR = {"linear_mm": 50.0, "angular_deg": 45.0}  # TaskConfig's bounds, in mm and deg
+_MAX_ERROR = {"linear_mm": (0.0, 50.0), "angular_deg": (0.0, 45.0)}  # TaskConfig's, mm and deg
 _RESULT_FIELDS = (
-    "success",
-    "time_s",
-    "shape_id",
-    "unstable",
-    "steps",
-    "peak_force",
-    "reward",
-    "chatter",
-    "protective_stop",
-)
+    "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled",
+    "chatter", "protective_stop",
+)  # fmt: skip
+# Evaluations from before early ending ran every failure to the time limit; those from before
+# credible contact (issue 18: the F/T pipeline, the protective stop, the compliance damping) ran
+# another physics (contact_model 1) and recorded no contact metrics.
+_OLD_DEFAULTS = {"full_time_limit": True, "contact_model": 1}
+_CONTACT_FIELDS = ("chatter", "protective_stop")
+CONTACT_MODEL = 2  # the trial's physics and sensing (EvalConfig.contact_model)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,6 +95,12 @@ class EvalConfig:
     time_limit_s: float = 60.0  # per trial, the paper's
     seed: int = 0
     engine: str = "mujoco"  # resolved: mujoco or mjx
+    # True: every failure runs to the time limit (the paper's protocol); False: a failure that
+    # has settled ends early (TrialConfig.end_settled), with the same outcome
+    full_time_limit: bool = False
+    # The trial's physics and sensing: 2 since credible contact (the F/T pipeline, protective
+    # stop and compliance damping of issue 18); an evaluation made with 1 cannot be resumed.
+    contact_model: int = CONTACT_MODEL
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -103,9 +109,9 @@ class EvalConfig:
             values = tuple(float(v) for v in getattr(self, name))
             if not values:
                 raise ValueError(f"{name} is empty: the grid needs at least one range")
-            upper = _MAX_ERROR[name]
-            if not all(math.isfinite(v) and 0.0 <= v <= upper for v in values):
-                raise ValueError(f"{name} must lie in [0, {upper:g}], got {values}")
+            lower, upper = _MAX_ERROR[name]
+            if not all(math.isfinite(v) and lower <= v <= upper for v in values):
+                raise ValueError(f"{name} must lie in [{lower:g}, {upper:g}], got {values}")
             if len(set(values)) != len(values):
                 raise ValueError(f"{name} repeats a value: {values}")
             object.__setattr__(self, name, tuple(sorted(values)))
@@ -121,11 +127,16 @@ class EvalConfig:
             raise ValueError(f"size must be a positive number of mm, got {self.size_mm!r}")
         if self.engine not in ("mujoco", "mjx"):
             raise ValueError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
-        TrialConfig(time_limit_s=self.time_limit_s)  # validates the time limit
+        if not isinstance(self.full_time_limit, bool):
+            raise ValueError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
+        self.trial_config()  # validates the time limit
         # Validates shapes, size and the largest errors (reach of the workspace) once, up front.
         task_config(self, self.shapes[0], self.linear_mm[-1], self.angular_deg[-1])
         for shape in self.shapes[1:]:
             task_config(self, shape, 0.0, 0.0)
+
+    def trial_config(self) -> TrialConfig:
+        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
 
     @property
     def ranges(self) -> list[tuple[float, float]]:
@@ -176,25 +187,38 @@ def grid_axes(
     return tuple(round(v * scale, 9) for v in linear), angular, trials
 
 
-def parse_ranges(text: str, name: str) -> tuple[float, ...]:
-    """'0.5,1,2' or 'START:STOP:STEP' (inclusive) or a mix -> the values; ValueError if empty."""
+def parse_ranges(text: str, name: str, limit: int = cli.MAX_AXIS) -> tuple[float, ...]:
+    """'0.5,1,2' or 'START:STOP:STEP' (inclusive) or a mix -> the values; ValueError if empty,
+    not finite or more than `limit` values (counted before any is made)."""
     values: list[float] = []
     try:
         for item in (s.strip() for s in text.split(",")):
             if not item:
                 continue
-            if ":" in item:
-                start, stop, step = (float(p) for p in item.split(":"))
+            parts = [float(p) for p in item.split(":")]
+            if not all(math.isfinite(v) for v in parts) or len(parts) not in (1, 3):
+                raise ValueError
+            if len(parts) == 3:
+                start, stop, step = parts
                 if not step > 0:
                     raise ValueError(f"{name}: step of {item!r} must be positive")
-                count = math.floor((stop - start) / step + 1e-9) + 1
+                count = (stop - start) / step + 1e-9
+                if count + 1 + len(values) > limit:
+                    raise ValueError(
+                        f"{name}: {item!r} gives more than {limit:,} values, the most a grid axis "
+                        "takes"
+                    )
+                count = math.floor(count) + 1
                 values += [round(start + k * step, 9) for k in range(max(count, 0))]
             else:
-                values.append(float(item))
+                values.append(parts[0])
+            if len(values) > limit:
+                raise ValueError(f"{name}: more than {limit:,} values, the most a grid axis takes")
     except ValueError as exc:
         if str(exc).startswith(name):
             raise
-        raise ValueError(f"{name}: cannot read {text!r} (give 0.5,1,2 or 1:8:1)") from None
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        raise ValueError(f"{name}: cannot read {shown!r} (give 0.5,1,2 or 1:8:1)") from None
     if not values:
         raise ValueError(f"{name} is empty: give comma-separated values or START:STOP:STEP")
     return tuple(values)
@@ -234,38 +258,64 @@ def range_specs(config: EvalConfig, index: int) -> TrialSpec:
 # The output directory.
 
 
-def _write_atomic(path: Path, write: Callable) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        write(f)
-    os.replace(tmp, path)
+def _saved_config(path: Path) -> dict | None:
+    """The config of an evaluation's config.json, or None if it is not one."""
+    try:
+        doc = json.loads(path.read_text())
+        if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
+            return None
+        return doc["config"]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
 
 
-def prepare_out_dir(out_dir, config: EvalConfig, policy_dir: str | None = None) -> Path:
-    """Create out_dir with config.json, or check that its config.json equals `config`."""
+def prepare_out_dir(
+    out_dir,
+    config: EvalConfig,
+    policy_dir: str | None = None,
+    force: bool = False,
+    note: Callable[[str], None] | None = None,
+) -> Path:
+    """Create out_dir with config.json, or check that its config.json equals `config` and that
+    every range it holds reads (resume). With `force`, an evaluation directory (whatever its
+    config) is moved aside and started anew; nothing else is ever replaced."""
     out = Path(out_dir)
     path = out / CONFIG_FILE
     wanted = config.to_json()
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} exists and is not a directory; use another --out")
     if path.is_file():
-        try:
-            saved = json.loads(path.read_text())["config"]
-        except (OSError, ValueError, KeyError, TypeError):
-            raise ValueError(f"{path} is not an evaluation config; use another --out") from None
+        saved = _saved_config(path)
+        if saved is None:
+            raise ValueError(f"{path} is not an evaluation config; use another --out")
+        saved = {**_OLD_DEFAULTS, **saved}
         diff = [k for k in wanted if saved.get(k) != wanted[k]]
-        if diff:
+        if force:
+            moved = cli.move_aside(out)
+            if note is not None:
+                note(f"--force: moved the earlier evaluation in {out} aside to {moved}")
+        elif diff:
             k = diff[0]
             raise ValueError(
                 f"{out} holds an evaluation with a different config ({k}: {saved.get(k)!r} "
-                f"there, {wanted[k]!r} now); use another --out or the same options"
+                f"there, {wanted[k]!r} now); use another --out or the same options, or pass "
+                "--force to move it aside and start over"
             )
-        return out
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"{out} exists and is not an evaluation directory; use another --out")
-    (out / RANGES_DIR).mkdir(parents=True, exist_ok=True)
+        else:
+            for i in range(len(config.ranges)):
+                load_range(out, config, i)  # a corrupt file: one line naming it, up front
+            cli.write_atomic(path, path.read_bytes())  # writable (or one line), unchanged
+            return out
+    elif out.exists() and any(out.iterdir()):
+        raise ValueError(
+            f"{out} exists and is not an evaluation directory; use another --out (--force "
+            "replaces only an evaluation)"
+        )
+    cli.prepare_dir(out / RANGES_DIR)
     doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "config": wanted}
     if policy_dir is not None:
         doc["policy_dir"] = str(Path(policy_dir).resolve())
-    _write_atomic(path, lambda f: f.write((json.dumps(doc, indent=2) + "\n").encode()))
+    cli.write_atomic(path, json.dumps(doc, indent=2) + "\n")
     return out
 
 
@@ -278,7 +328,7 @@ def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
         doc = json.loads(path.read_text())
         if doc.get("schema") != SCHEMA:
             raise ValueError
-        config = EvalConfig(**doc["config"])
+        config = EvalConfig(**{**_OLD_DEFAULTS, **doc["config"]})
     except (OSError, ValueError, KeyError, TypeError):
         raise ValueError(f"{path} is not an mjx-peg evaluation config") from None
     return config, doc.get("policy_dir")
@@ -293,9 +343,24 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
     path = _range_path(out, index)
     if not path.is_file():
         return None
-    with np.load(path, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    assert arrays["success"].shape == (config.trials,), f"{path}: wrong number of trials"
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        if "success" in arrays:  # saved before early ending existed: no trial settled
+            arrays.setdefault("settled", np.zeros(arrays["success"].shape, bool))
+        # Saved before credible contact (contact_model 1): no contact metrics.
+        optional = _CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
+        missing = [k for k in _RESULT_FIELDS if k not in arrays and k not in optional]
+        if missing:
+            raise ValueError(f"no {', '.join(missing)}")
+        wrong = [k for k in _RESULT_FIELDS if k in arrays and arrays[k].shape != (config.trials,)]
+        if wrong:
+            raise ValueError(f"{wrong[0]} does not hold {config.trials} trials")
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ValueError(
+            f"{path} is corrupt or truncated ({type(e).__name__}: {cli.message(e)}); delete it "
+            "and rerun the same command to run that range again"
+        ) from None
     return arrays
 
 
@@ -319,7 +384,7 @@ def run_evaluation(
     done = {i for i in range(n_ranges) if _range_path(out, i).is_file()}
     per_chunk = max(1, chunk_trials // config.trials)
     chunks = [range(s, min(s + per_chunk, n_ranges)) for s in range(0, n_ranges, per_chunk)]
-    trial_config = TrialConfig(time_limit_s=config.time_limit_s)
+    trial_config = config.trial_config()
     ran = 0
     with tqdm(
         total=n_ranges * config.trials,
@@ -349,7 +414,7 @@ def run_evaluation(
                 rows = slice(start, start + len(s))
                 arrays = {k: getattr(result, k)[rows] for k in _RESULT_FIELDS if k != "shape_id"}
                 arrays["shape_id"] = s.shape_id
-                _write_atomic(_range_path(out, i), lambda f, a=arrays: np.savez(f, **a))
+                cli.write_atomic(_range_path(out, i), lambda p, a=arrays: np.savez(p, **a))
                 start += len(s)
             ran += len(result)
     return ran
@@ -359,7 +424,8 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
     """The grid table of a finished evaluation from its per-range results."""
     out = Path(out_dir)
     lin, ang = np.array(config.ranges).T
-    rows = {k: [] for k in ("trials", "successes", "mean", "min", "max")}
+    rows = {k: [] for k in ("trials", "successes", "mean", "min", "max", "settled", "stops",
+                            "peak", "smooth")}  # fmt: skip
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         assert arrays is not None, f"range {i} has not finished"
@@ -368,6 +434,12 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
         rows["successes"].append(int(arrays["success"].sum()))
         for stat, fn in (("mean", np.mean), ("min", np.min), ("max", np.max)):
             rows[stat].append(float(fn(times)) if times.size else math.nan)
+        rows["settled"].append(int(arrays["settled"].sum()))
+        contact = all(k in arrays for k in _CONTACT_FIELDS)  # not before credible contact
+        rows["stops"].append(int(arrays["protective_stop"].sum()) if contact else math.nan)
+        rows["peak"].append(float(np.median(arrays["peak_force"])) if contact else math.nan)
+        long = arrays["chatter"][arrays["time_s"] > 1.2] if contact else np.zeros(0)
+        rows["smooth"].append(100.0 * float((long < 5.0).mean()) if long.size else math.nan)
     return es.GridTable(
         linear_mm=lin,
         angular_deg=ang,
@@ -376,6 +448,10 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
         time_mean_s=np.array(rows["mean"]),
         time_min_s=np.array(rows["min"]),
         time_max_s=np.array(rows["max"]),
+        settled=np.array(rows["settled"]),
+        protective_stops=np.array(rows["stops"], dtype=float),
+        peak_force_median_n=np.array(rows["peak"]),
+        chatter_under_5n_pct=np.array(rows["smooth"]),
     )
 
 
@@ -384,16 +460,20 @@ def load_evaluation_grid(eval_dir) -> es.GridTable:
     eval_dir = Path(eval_dir)
     if not eval_dir.is_dir():
         raise ValueError(f"{eval_dir} is not a directory")
-    return es.GridTable.from_csv(eval_dir / GRID_FILE)
+    try:
+        return es.GridTable.from_csv(eval_dir / GRID_FILE)
+    except csv.Error as e:
+        raise ValueError(f"{eval_dir / GRID_FILE} is not an evaluation grid.csv ({e})") from None
 
 
 def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str) -> list[str]:
     per_shape = {s: [0, 0] for s in config.shapes}
-    steps = 0
+    steps = settled = 0
     contact = {k: [] for k in ("peak_force", "chatter", "protective_stop", "time_s")}
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         steps += int(arrays["steps"].sum())
+        settled += int(arrays["settled"].sum())
         for k in contact:
             if k in arrays:  # evaluations from before the sensor pipeline lack them
                 contact[k].append(arrays[k])
@@ -411,7 +491,12 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
         f"grid: {config.grid}, {len(lin)} linear x {len(ang)} angular = {len(config.ranges)} "
         f"ranges; linear +-{lin[0]:g}..{lin[-1]:g} mm, angular +-{ang[0]:g}..{ang[-1]:g} deg",
         f"shapes: {', '.join(config.shapes)} (trials split evenly); size S = {config.size_mm:g} mm",
-        f"trials per range: {config.trials}; time limit {config.time_limit_s:g} s per trial",
+        f"trials per range: {config.trials}; time limit {config.time_limit_s:g} s per trial; "
+        + (
+            "every failure ran to the time limit (--full-time-limit)"
+            if config.full_time_limit
+            else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
+        ),
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
@@ -451,7 +536,7 @@ def write_outputs(
 
     out = Path(out_dir)
     grid = grid_table(out, config)
-    _write_atomic(out / GRID_FILE, lambda f: f.write(grid.csv_text().encode()))
+    cli.write_atomic(out / GRID_FILE, grid.csv_text())
     what = f"{', '.join(config.shapes)}, S = {config.size_mm:g} mm, N = {config.trials}"
     plots.success_heatmap(grid, out / SUCCESS_PNG, f"Success rate (%): {what}")
     plots.time_heatmap(grid, out / TIME_PNG, f"Mean time to complete (s): {what}")
@@ -460,7 +545,7 @@ def write_outputs(
         plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
     header = _header(out, config, grid, policy_label)
     text = es.summary_markdown(grid, header, paper_name, other, other_name, alternative)
-    _write_atomic(out / SUMMARY_FILE, lambda f: f.write(text.encode()))
+    cli.write_atomic(out / SUMMARY_FILE, text)
     return grid
 
 
@@ -478,32 +563,47 @@ def check_engine_options(engine: str, options: dict) -> None:
             raise ValueError(f"the {engine} engine takes no option {key!r}")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {value}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
         prog=PROG,
         description="Evaluate a policy over a grid of error ranges (paper section 6): grid.csv, "
         "heatmaps and summary.md in --out. Rerun the same command to resume.",
     )
-    p.add_argument("--policy", required=True, help="run directory with policy.npz, or 'baseline'")
-    p.add_argument("--out", required=True, help="output directory (resumed if it exists)")
+    p.add_argument(
+        "--policy",
+        type=cli.nonempty_path,
+        required=True,
+        help="run directory with policy.npz, or 'baseline'",
+    )
+    p.add_argument(
+        "--out",
+        type=cli.nonempty_path,
+        required=True,
+        help="output directory (an evaluation with the same options there is resumed)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="start over in --out although it holds an evaluation (another config, or finished): "
+        "the earlier one is moved aside to OUT.replaced-DATE-TIME (nothing but an evaluation is "
+        "ever replaced)",
+    )
     p.add_argument(
         "--grid",
         default="paper-small",
         choices=GRIDS,
         help="paper: 25 x 14 ranges, N=200; paper-small: 10 x 10, N=50; custom",
     )
-    p.add_argument("--linear-mm", help="custom grid: linear ranges (mm), e.g. 0.5,1,2 or 1:8:1")
-    p.add_argument("--angular-deg", help="custom grid: angular ranges (deg), e.g. 2,6 or 2:12:2")
+    p.add_argument(
+        "--linear-mm",
+        help="custom grid: linear ranges (mm), e.g. 0.5,1,2 or 1:8:1; each in [0, 50] mm, at "
+        f"most {cli.MAX_AXIS:,} values",
+    )
+    p.add_argument(
+        "--angular-deg",
+        help="custom grid: angular ranges (deg), e.g. 2,6 or 2:12:2; each in [0, 45] deg, at "
+        f"most {cli.MAX_AXIS:,} values",
+    )
     p.add_argument(
         "--linear-absolute",
         action="store_true",
@@ -514,21 +614,38 @@ def build_parser() -> argparse.ArgumentParser:
         default=",".join(DEFAULT_SHAPES),
         help=f"comma-separated shapes from {', '.join(SHAPES)} (trials split evenly)",
     )
-    p.add_argument("--size", type=float, default=50.0, help="characteristic size S (mm)")
-    p.add_argument("--trials", type=int, help="trials per range (default: the grid's)")
-    p.add_argument("--time-limit", type=float, default=60.0, help="per trial (s), the paper's 60")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--size", type=cli.SIZE_MM, default=50.0, help="characteristic size S (default 50)"
+    )
+    p.add_argument(
+        "--trials",
+        type=cli.TRIALS,
+        help=f"trials per range (default: the grid's); at most {cli.MAX_GRID_TRIALS:,} in the grid",
+    )
+    p.add_argument(
+        "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial, the paper's 60"
+    )
+    p.add_argument(
+        "--full-time-limit",
+        action="store_true",
+        help="run every failure to the time limit, the paper's protocol (default: a failure "
+        "that has settled, at rest or repeating the same motion, ends early; same outcome)",
+    )
+    p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
-    p.add_argument("--threads", type=_positive_int, help="engine option threads (if it takes it)")
-    p.add_argument("--workers", type=_positive_int, help="engine option workers (if it takes it)")
+    p.add_argument(
+        "--threads", type=cli.integer(1, 64), help="engine option threads (if it takes it)"
+    )
+    p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
     p.add_argument(
         "--chunk-trials",
-        type=_positive_int,
+        type=cli.TRIALS,
         default=DEFAULT_CHUNK_TRIALS,
         help="trials per engine call; results are saved after each",
     )
     p.add_argument(
         "--compare",
+        type=cli.nonempty_path,
         metavar="OTHER_EVAL_DIR",
         help="test this evaluation against another one per quarter",
     )
@@ -551,20 +668,30 @@ def build_parser() -> argparse.ArgumentParser:
 
 def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
     """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
-    if args.trials is not None and args.trials < 1:
-        raise ValueError(f"--trials must be a positive integer, got {args.trials}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
-    if not (math.isfinite(args.size) and args.size > 0):
-        raise ValueError(f"--size must be a positive number of mm, got {args.size}")
     linear = None if args.linear_mm is None else parse_ranges(args.linear_mm, "--linear-mm")
     angular = None if args.angular_deg is None else parse_ranges(args.angular_deg, "--angular-deg")
     linear, angular, trials = grid_axes(
         args.grid, args.size, linear, angular, linear_absolute=args.linear_absolute
     )
+    for flag, values, unit in (("--linear-mm", linear, "mm"), ("--angular-deg", angular, "deg")):
+        lo, hi = _MAX_ERROR[flag[2:].replace("-", "_")]
+        bad = [v for v in values if not lo <= v <= hi]
+        if bad:
+            what = "ranges" if args.grid == "custom" else f"ranges of the {args.grid} grid at S"
+            raise ValueError(f"{flag} {what} must lie in [{lo:g}, {hi:g}] {unit}, got {bad[0]:g}")
     trials = args.trials if args.trials is not None else trials
     if trials is None:
         raise ValueError("--grid custom needs --trials")
+    n_ranges = len(set(linear)) * len(set(angular))
+    if n_ranges > cli.MAX_RANGES:
+        raise ValueError(
+            f"{n_ranges:,} error ranges: an evaluation grid takes at most {cli.MAX_RANGES:,}"
+        )
+    if n_ranges * trials > cli.MAX_GRID_TRIALS:
+        raise ValueError(
+            f"{n_ranges:,} ranges x {trials:,} trials: an evaluation grid takes at most "
+            f"{cli.MAX_GRID_TRIALS:,} trials"
+        )
     shapes = tuple(s.strip() for s in args.shape.split(",") if s.strip())
     for shape in shapes:
         if shape not in SHAPES:
@@ -578,37 +705,45 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         shapes=shapes,
         size_mm=args.size,
         time_limit_s=args.time_limit,
+        full_time_limit=args.full_time_limit,
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )
 
 
+@cli.entry(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
     args = build_parser().parse_args(argv)
-    out = Path(args.out)
-    try:
-        policy_label, controller = load_controller(args.policy)
-        config = config_from_args(args, policy_label)
-        options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
-        check_engine_options(config.engine, options)
-        other = None if args.compare is None else load_evaluation_grid(args.compare)
-        paper_name = args.paper
-        if paper_name == "auto":
-            paper_name = es.paper_condition_for(config.shapes, config.size_mm)
-        elif paper_name == "none":
-            paper_name = None
-        prepare_out_dir(out, config, None if args.policy == "baseline" else args.policy)
-    except cli.USER_ERRORS as exc:
-        return cli.fail(PROG, exc)
+    out = args.out
+    policy = str(args.policy)
+    policy_label, controller = load_controller(policy)
+    config = config_from_args(args, policy_label)
+    options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+    check_engine_options(config.engine, options)
+    other = None if args.compare is None else load_evaluation_grid(args.compare)
+    paper_name = args.paper
+    if paper_name == "auto":
+        paper_name = es.paper_condition_for(config.shapes, config.size_mm)
+    elif paper_name == "none":
+        paper_name = None
+    cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
+    prepare_out_dir(
+        out,
+        config,
+        None if policy == "baseline" else policy,
+        force=args.force,
+        note=lambda text: cli.note(PROG, text),
+    )
+    from mjx_peg.world import mujoco_log
+
+    mujoco_log.send_to(out)
     n_ranges = len(config.ranges)
     start = time.perf_counter()
     try:
         ran = run_evaluation(
             config, out, controller, options, args.chunk_trials, show_progress=not args.no_progress
         )
-    except cli.USER_ERRORS as exc:
-        return cli.fail(PROG, exc)
     except KeyboardInterrupt:
         done = sum(_range_path(out, i).is_file() for i in range(n_ranges))
         print(
@@ -617,7 +752,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return cli.EXIT_INTERRUPTED
-    label = policy_label if args.policy == "baseline" else f"{args.policy} ({policy_label[:19]})"
+    label = policy_label if policy == "baseline" else f"{policy} ({policy_label[:19]})"
     write_outputs(out, config, label, paper_name, other, args.compare or "", args.alternative)
     wall = time.perf_counter() - start
     print(

@@ -5,14 +5,16 @@
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
     python train.py --preset paper --out runs/paper  # after a crash or kill: resumes
 
-Bad input exits with status 2 and one line on stderr.
+Bad input exits with status 2 and one line on stderr, before --out is touched. --force moves an
+earlier run aside (never deletes it) and replaces nothing but a training run; --out is never the
+--init-from run.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
+from pathlib import Path
 
 from mjx_peg import cli
 from mjx_peg.engines import ENGINES
@@ -20,21 +22,41 @@ from mjx_peg.engines import ENGINES
 PROG = "train.py"
 
 
+MAX_TRIALS = 10_000_000  # training budget (the longest run in the README: 98,304 trials)
+MAX_NUM_ENVS = 65_536  # trials per iteration
+
+
 def parser() -> argparse.ArgumentParser:
     from mjx_peg.learn.config import PRESETS
 
     p = cli.Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), help="default: quick")
-    p.add_argument("--out", help="run directory (default: runs/PRESET)")
+    p.add_argument("--out", type=cli.nonempty_path, help="run directory (default: runs/PRESET)")
     p.add_argument("--engine", choices=ENGINES, help="physics engine (preset: mujoco)")
-    p.add_argument("--seed", type=int)
-    p.add_argument("--num-envs", type=int, help="trials per iteration")
-    p.add_argument("--trials", type=int, help="training budget in trials")
-    p.add_argument("--time-limit", type=float, help="seconds per training trial")
-    p.add_argument("--init-from", help="run directory whose networks start this run")
-    p.add_argument("--force", action="store_true", help="overwrite a finished run in --out")
-    p.add_argument("--checkpoint-every", type=float, default=60.0, help="seconds (default 60)")
-    p.add_argument("--workers", type=int, help="CPU engine worker processes (default: all cores)")
+    p.add_argument("--seed", type=cli.SEED, help="preset: 0")
+    p.add_argument("--num-envs", type=cli.integer(1, MAX_NUM_ENVS), help="trials per iteration")
+    p.add_argument("--trials", type=cli.integer(1, MAX_TRIALS), help="training budget in trials")
+    p.add_argument("--time-limit", type=cli.TIME_LIMIT_S, help="per training trial")
+    p.add_argument(
+        "--init-from", type=cli.nonempty_path, help="run directory whose networks start this run"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="start over in --out although it holds a run (finished, or with another config): "
+        "the earlier run is moved aside to OUT.replaced-DATE-TIME (nothing but a training run is "
+        "ever replaced)",
+    )
+    p.add_argument(
+        "--checkpoint-every", type=cli.number(0, 86400, "s"), default=60.0, help="default 60"
+    )
+    p.add_argument(
+        "--full-time-limit",
+        action="store_true",
+        help="run every failed trial to the time limit (default: a failure that has settled, "
+        "at rest or repeating the same motion, ends early with the same outcome)",
+    )
+    p.add_argument("--workers", type=cli.WORKERS, help="CPU engine threads (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -56,7 +78,8 @@ def resolve_config(args):
         "num_envs": args.num_envs,
         "trials": args.trials,
         "time_limit_s": args.time_limit,
-        "init_from": args.init_from,
+        "init_from": None if args.init_from is None else str(args.init_from),
+        "full_time_limit": args.full_time_limit or None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:
@@ -87,28 +110,29 @@ def join_distributed() -> None:
         raise ValueError(f"--distributed: could not join the run ({e})") from None
 
 
+@cli.entry(PROG, "interrupted; rerun the same command to resume")
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
-    try:
-        config = resolve_config(args)
-        if args.distributed:
-            join_distributed()
-        import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted
-        from mjx_peg.learn.trainer import train
+    out = args.out or Path("runs", args.preset)
+    config = resolve_config(args)
+    if config.init_from:
+        cli.check_apart(out, {"--init-from": config.init_from})
+    if args.distributed:
+        join_distributed()
+    import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted
+    from mjx_peg.learn.trainer import train
+    from mjx_peg.world import mujoco_log
 
-        options = {} if args.workers is None else {"workers": args.workers}
-        summary = train(
-            config,
-            args.out or os.path.join("runs", args.preset),
-            force=args.force,
-            checkpoint_every_s=args.checkpoint_every,
-            progress=not args.no_progress,
-            engine_options=options,
-        )
-    except ValueError as e:
-        return cli.fail(PROG, e)
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; rerun the same command to resume", file=sys.stderr)
-        return cli.EXIT_INTERRUPTED
+    mujoco_log.send_to(out)  # written only on a warning, once the run directory exists
+    options = {} if args.workers is None else {"workers": args.workers}
+    summary = train(
+        config,
+        out,
+        force=args.force,
+        checkpoint_every_s=args.checkpoint_every,
+        progress=not args.no_progress,
+        engine_options=options,
+        note=lambda text: cli.note(PROG, text),
+    )
     print(summary.line())
     return 0

@@ -56,10 +56,13 @@ class TrainConfig:
     # The F/T sensor randomized per trial, like the friction (TaskConfig): filter cutoff and
     # noise scaled by factors drawn log-uniformly, latency offset by whole control periods, around
     # the nominal UR5e sensor of TrialConfig.sensor (50 Hz, 1 period, 1.2 N): 25-100 Hz, 0-2
-    # periods, 0.6-2.4 N. The controller is stable over all of it (controller.py).
+    # periods, 0.6-2.4 N. The controller is stable over all of it (skill/control_step.py).
     sensor_cutoff_scale: tuple[float, float] = (0.5, 2.0)
     sensor_noise_scale: tuple[float, float] = (0.5, 2.0)
     sensor_delay_offset: tuple[int, int] = (-1, 1)
+    # True: every failed trial runs to the time limit; False: a failure that has settled ends
+    # early with the same outcome (TrialConfig.end_settled)
+    full_time_limit: bool = False
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -118,7 +121,7 @@ class TrainConfig:
         )
 
     def trial(self) -> TrialConfig:
-        return TrialConfig(time_limit_s=self.time_limit_s)
+        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
 
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)

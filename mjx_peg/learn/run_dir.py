@@ -15,11 +15,11 @@ from __future__ import annotations
 import csv
 import json
 import os
-import shutil
 from pathlib import Path
 
 import orbax.checkpoint as ocp
 
+from mjx_peg import cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import MANIFEST_FILE, POLICY_FILE
 
@@ -30,6 +30,10 @@ METRICS_COLUMNS = (
     "success_rate",
     "time_to_complete_s",
     "unstable_rate",
+    "settled_rate",
+    "protective_stop_rate",
+    "peak_force_median_n",
+    "chatter_median_n",
     "wall_s",
     "trials_per_s",
     "policy_loss",
@@ -39,6 +43,13 @@ METRICS_COLUMNS = (
     "policy_std",
 )
 TRIALS_COLUMNS = ("trial", "return", "success", "time_s")
+# metrics.csv columns added after runs were made, each after another: (name, after)
+_ADDED_METRICS = (
+    ("settled_rate", "unstable_rate"),
+    ("protective_stop_rate", "settled_rate"),
+    ("peak_force_median_n", "protective_stop_rate"),
+    ("chatter_median_n", "peak_force_median_n"),
+)
 KEEP_CHECKPOINTS = 3
 
 
@@ -69,36 +80,51 @@ class RunDir:
                 f"{self.path} is not a training run ({self.config_path.name}: {e})"
             ) from None
 
-    def prepare(self, config: TrainConfig, force: bool) -> bool:
-        """Create or reuse the directory; True when there is a run to resume."""
-        if force and self.path.exists():
-            shutil.rmtree(self.path)
+    def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
+        """What `prepare` will do, decided without touching anything: "new" (an empty or absent
+        directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:
+        it is moved aside); ValueError (one line) for everything else."""
+        if init_from is not None:
+            cli.check_apart(self.path, {"--init-from": init_from})
         if self.path.exists() and not self.path.is_dir():
             raise ValueError(f"--out {self.path} exists and is not a directory")
-        if self.path.is_dir() and any(self.path.iterdir()):
-            if not self.config_path.is_file():
-                raise ValueError(
-                    f"--out {self.path} is not empty and holds no training run; "
-                    "choose another directory"
-                )
-            if self.is_finished():
-                raise ValueError(
-                    f"--out {self.path} holds a finished run; pass --force to overwrite it"
-                )
-            previous = self.read_config()
-            if previous != config:
-                changed = sorted(
-                    k for k, v in config.to_json().items() if previous.to_json().get(k) != v
-                )
-                raise ValueError(
-                    f"--out {self.path} holds an unfinished run with a different config "
-                    f"({', '.join(changed)} differ); rerun it with the same options, or pass "
-                    "--force to start over"
-                )
-            return True
-        self.path.mkdir(parents=True, exist_ok=True)
-        self.config_path.write_text(config.dumps())
-        return False
+        if not self.path.is_dir() or not any(self.path.iterdir()):
+            return "new"
+        if not self.config_path.is_file():
+            raise ValueError(
+                f"--out {self.path} is not empty and holds no training run; choose another "
+                "directory (--force replaces only a training run)"
+            )
+        previous = self.read_config()  # a config.json that is not a run's: ValueError
+        if force:
+            return "replace"
+        if self.is_finished():
+            raise ValueError(
+                f"--out {self.path} holds a finished run; pass --force to move it aside and "
+                "start over"
+            )
+        if previous != config:
+            changed = sorted(
+                k for k, v in config.to_json().items() if previous.to_json().get(k) != v
+            )
+            raise ValueError(
+                f"--out {self.path} holds an unfinished run with a different config "
+                f"({', '.join(changed)} differ); rerun it with the same options, or pass "
+                "--force to move it aside and start over"
+            )
+        return "resume"
+
+    def prepare(self, config: TrainConfig, plan: str) -> Path | None:
+        """Carry out `plan` (from `plan()`): move a replaced run aside, create the directory,
+        (re)write config.json atomically (which proves the directory writable); returns where
+        a replaced run went."""
+        moved = None
+        if plan == "replace":
+            moved = cli.move_aside(self.path)
+        if plan != "resume":
+            cli.prepare_dir(self.path)
+        cli.write_atomic(self.config_path, config.dumps())
+        return moved
 
     def checkpoints(self) -> ocp.CheckpointManager:
         return ocp.CheckpointManager(
@@ -120,12 +146,24 @@ class RunDir:
             self.start_tables()
             return
         for path, column in ((self.metrics_path, "trials"), (self.trials_path, "trial")):
-            with open(path, newline="") as f:
-                rows = list(csv.reader(f))
-            header, body = rows[0], rows[1:]
-            i = header.index(column)
-            limit = trials if column == "trials" else trials - 1
-            kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
+            try:
+                with open(path, newline="") as f:
+                    rows = list(csv.reader(f))
+                header, body = rows[0], rows[1:]
+                if path == self.metrics_path:  # an older run: columns added since, left empty
+                    for name, after in _ADDED_METRICS:
+                        if name not in header:
+                            at = header.index(after) + 1
+                            header.insert(at, name)
+                            body = [r[:at] + [""] + r[at:] for r in body]
+                i = header.index(column)
+                limit = trials if column == "trials" else trials - 1
+                kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
+            except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
+                raise ValueError(
+                    f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
+                    "aside (--force) to start over"
+                ) from None
             tmp = path.with_suffix(".tmp")
             with open(tmp, "w", newline="") as f:
                 csv.writer(f).writerows([header] + kept)

@@ -9,7 +9,9 @@ trials.csv, checkpoint every `checkpoint_every_s` seconds and at the end, then e
 from __future__ import annotations
 
 import math
+import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +20,7 @@ import jax.experimental.multihost_utils
 import numpy as np
 import orbax.checkpoint as ocp
 
+from mjx_peg import cli
 from mjx_peg.learn import ppo
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
@@ -61,12 +64,45 @@ def _save(manager: ocp.CheckpointManager, state: ppo.TrainingState) -> None:
     manager.wait_until_finished()
 
 
+def _quiet_closed_loop(unraisable) -> None:
+    """sys.unraisablehook: drop the 'Event loop is closed' reports of TensorStore reads that
+    were still in flight when a failed Orbax restore closed its event loop; pass on the rest."""
+    exc = unraisable.exc_value
+    if isinstance(exc, RuntimeError) and str(exc) == "Event loop is closed":
+        return
+    _previous_unraisablehook(unraisable)
+
+
+_previous_unraisablehook = sys.unraisablehook
+
+
 def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=None):
     step = manager.latest_step() if step is None else step
     abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(template))
-    flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
-    leaves = [np.asarray(flat[k]) for k in sorted(flat)]
-    return jax.tree.unflatten(jax.tree.structure(template), leaves)
+    try:
+        flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
+        leaves = [np.asarray(flat[k]) for k in sorted(flat)]
+        if len(leaves) != len(jax.tree.leaves(template)):
+            raise ValueError(f"{len(leaves)} arrays, the run's state has another number")
+        state = jax.tree.unflatten(jax.tree.structure(template), leaves)
+    except Exception as e:  # a corrupt or truncated checkpoint can fail anywhere inside Orbax
+        global _previous_unraisablehook
+        if sys.unraisablehook is not _quiet_closed_loop:
+            _previous_unraisablehook, sys.unraisablehook = sys.unraisablehook, _quiet_closed_loop
+        text = cli.message(e).split(" [tensorstore_spec=")[0]
+        text = text if len(text) <= 300 else text[:297] + "..."
+        where = Path(manager.directory) / str(step)
+        raise ValueError(
+            f"checkpoint {where} is corrupt or truncated ({type(e).__name__}: {text})"
+        ) from None
+    return state
+
+
+def _has_checkpoint(run: RunDir) -> bool:
+    """Whether the run directory holds a finished checkpoint (without creating anything)."""
+    return run.checkpoint_dir.is_dir() and any(
+        p.name.isdigit() for p in run.checkpoint_dir.iterdir()
+    )
 
 
 def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
@@ -120,8 +156,13 @@ def train(
     progress: bool = True,
     stop_after_iterations: int | None = None,
     engine_options: dict | None = None,
+    note: Callable[[str], None] | None = None,
 ) -> TrainSummary:
-    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests)."""
+    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests).
+
+    Everything is checked before `out` is touched: what `out` holds (RunDir.plan), that it is
+    not --init-from's run, and the --init-from checkpoint itself. With `force` an earlier run in
+    `out` is moved aside (`note` is told where), never deleted, and nothing but a run is."""
     devices = jax.device_count()
     if config.num_envs % (devices * config.num_minibatches):
         raise ValueError(
@@ -132,19 +173,31 @@ def train(
     # With jax.distributed every process runs this loop on the same (shared) run directory;
     # process 0 writes the files, all take part in Orbax's checkpoint saves.
     primary = jax.process_index() == 0
-    resume = run.prepare(config, force) if primary else True
+    plan = run.plan(config, force, config.init_from) if primary else "resume"
+    state = ppo.init_state(config, ppo.make_networks(config))
+    resuming = plan == "resume" and _has_checkpoint(run)
+    initial = None
+    if config.init_from and not resuming:
+        initial = _load_init(config, state)  # read before `out` is touched
+    if primary:
+        moved = run.prepare(config, plan)
+        if moved is not None and note is not None:
+            note(f"--force: moved the earlier run in {run.path} aside to {moved}")
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
     env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options)
-    state = ppo.init_state(config, ppo.make_networks(config))
     manager = run.checkpoints()
-    if resume and manager.latest_step() is not None:
-        state = _restore(manager, state)
+    if plan == "resume" and manager.latest_step() is not None:
+        try:
+            state = _restore(manager, state)
+        except BaseException:
+            manager.close()
+            raise
         if primary:
             run.truncate_tables(int(state.trials))
     else:
         if config.init_from:
-            state = _load_init(config, state)
+            state = initial if initial is not None else _load_init(config, state)
         if primary:
             run.start_tables()
     step = ppo.make_iteration(env, config)
@@ -184,6 +237,10 @@ def train(
                     f"{succ.mean():.4f}",
                     f"{times.mean():.4f}" if times.size else "",
                     f"{(trials['unstable'] > 0.5).mean():.4f}",
+                    f"{(trials['settled'] > 0.5).mean():.4f}",
+                    f"{(trials['protective_stop'] > 0.5).mean():.4f}",
+                    f"{np.median(trials['peak_force']):.2f}",
+                    f"{np.median(trials['chatter']):.3f}",
                     f"{wall:.2f}",
                     f"{config.num_envs / (now - t0):.2f}",
                     f"{float(metrics['policy_loss']):.5g}",

@@ -5,7 +5,8 @@
 Each trial samples a board, errors and a start like the evaluation (`task.sample_trials`), builds
 a `SimArm`, and runs `run_skill` with the numbers the policy gives for the estimated hole. The
 command rate must divide the 500 Hz physics (500, 250, 166.7, 125, 100, ... Hz); torques are held
-between commands. Writes `runs.csv` (one row per trial) under --out.
+between commands. Writes `runs.csv` under --out, one row per trial as it ends (a crash keeps the
+finished ones); an earlier runs.csv is replaced only with --force, which moves it aside.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 
 from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.policy.export import PolicyError, load_policy
+from mjx_peg.policy.export import load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.world import constants
@@ -31,19 +32,36 @@ PROG = "python -m mjx_peg.robot"
 PHYSICS_HZ = 1.0 / constants.TIMESTEP
 
 
+COLUMNS = ("trial", "success", "time_s", "commands", "stopped", "protective_stop", "settled",
+           "peak_force_n", "chatter_n")  # fmt: skip
+RESULTS = "runs.csv"
+
+
 def _parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="baseline", help="RUN_DIR holding policy.npz, or baseline")
     p.add_argument("--shape", choices=constants.SHAPES, default="circle")
-    p.add_argument("--size", type=float, default=50.0, help="size S in mm (default 50)")
-    p.add_argument("--linear-mm", type=float, default=2.0, help="± linear error range (mm)")
-    p.add_argument("--angular-deg", type=float, default=3.0, help="± angular error range (deg)")
-    p.add_argument("--trials", type=int, default=10)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--command-hz", type=float, default=125.0,
-                   help="torque command rate (default 125, the paper's UR5e)")  # fmt: skip
-    p.add_argument("--time-limit", type=float, default=60.0, help="simulated s per trial")
-    p.add_argument("--out", type=Path, default=Path("runs/robot"))
+    p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="size S (default 50)")
+    p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=2.0, help="± linear error range")
+    p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0, help="± angular error range")
+    p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
+    p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
+    p.add_argument(
+        "--command-hz",
+        type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
+        default=125.0,
+        help="torque command rate, a divisor of the 500 Hz physics (default 125, the paper's UR5e)",
+    )
+    p.add_argument(
+        "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="simulated time per trial"
+    )
+    p.add_argument("--out", type=cli.nonempty_path, default=Path("runs/robot"))
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace {RESULTS} in --out: the earlier one is moved aside "
+        f"({RESULTS}.replaced-DATE-TIME)",
+    )
     p.add_argument("--no-progress", action="store_true")
     return p
 
@@ -62,62 +80,94 @@ def command_steps(hz: float) -> int:
 
 
 def _setup(args):
-    if args.trials < 1:
-        raise ValueError(f"--trials must be >= 1, got {args.trials}")
-    if not (args.time_limit > 0 and math.isfinite(args.time_limit)):
-        raise ValueError(
-            f"--time-limit must be a positive number of seconds, got {args.time_limit}"
-        )
-    if not (args.size > 0 and math.isfinite(args.size)):
-        raise ValueError(f"--size must be a positive number of mm, got {args.size}")
-    if args.linear_mm < 0 or args.angular_deg < 0:
-        raise ValueError("error ranges must be >= 0")
     steps = command_steps(args.command_hz)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
-    specs = sample_trials(task, args.seed, args.trials)
+    if not args.policy:
+        raise ValueError("--policy must be a run directory or baseline, got an empty string")
     if args.policy != "baseline" and not Path(args.policy).exists():
         raise ValueError(f"--policy {args.policy}: no such run directory")
-    return specs, steps
+    return task, steps
 
 
+def _has_rows(path: Path) -> bool:
+    """Whether a results file holds any result (more than a header)."""
+    try:
+        with open(path, "rb") as f:
+            return len(f.read(1 << 16).splitlines()) > 1
+    except FileNotFoundError:
+        return False
+
+
+@cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    try:
-        specs, steps = _setup(args)
-        policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
-        holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
-        vectors = [controller_vector(policy, hole) for hole in holes]
-    except (*cli.USER_ERRORS, PolicyError) as exc:
-        return cli.fail(PROG, exc)
+    task, steps = _setup(args)
+    policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
+    # The output location, before any trial: never the policy, no earlier result replaced
+    # without --force (moved aside then), writable; then one row per trial as it ends.
+    cli.check_apart(args.out, {"--policy": args.policy})
+    results = args.out / RESULTS
+    if _has_rows(results) or results.is_symlink():
+        cli.refuse_or_move([results], args.force, PROG)
+    cli.prepare_dir(args.out)
+    from mjx_peg.world import mujoco_log
+
+    mujoco_log.send_to(args.out)
+    specs = sample_trials(task, args.seed, args.trials)
+    holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
+    vectors = [controller_vector(policy, hole) for hole in holes]
     config = TrialConfig(time_limit_s=args.time_limit)
-    args.out.mkdir(parents=True, exist_ok=True)
     rows, start = [], time.perf_counter()
     bar = None
     if not args.no_progress:
         from tqdm import tqdm
 
         bar = tqdm(total=len(specs), desc="trials", unit="trial", file=sys.stderr)
-    for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
-        arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height)
-        run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
-        rows.append((i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped))
-        if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
-    with open(args.out / "runs.csv", "w", newline="") as f:
+    with open(results, "w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(("trial", "success", "time_s", "commands", "stopped"))
-        writer.writerows(rows)
+        writer.writerow(COLUMNS)
+        f.flush()
+        try:
+            for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
+                arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height)
+                run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
+                row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
+                       int(run.protective_stop), int(run.stopped == "settled"),
+                       f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
+                writer.writerow(row)
+                f.flush()  # a crash keeps every finished trial
+                rows.append(row)
+                if bar is not None:
+                    bar.update(1)
+        except KeyboardInterrupt:
+            print(
+                f"{PROG}: interrupted after {len(rows)} of {len(specs)} trials; their rows are "
+                f"in {results}",
+                file=sys.stderr,
+            )
+            return cli.EXIT_INTERRUPTED
+        finally:
+            if bar is not None:
+                bar.close()
     ok = np.array([r[1] for r in rows], dtype=bool)
     times = np.array([float(r[2]) for r in rows])
     median = f"{np.median(times[ok]):.2f} s" if ok.any() else "-"
     stops = sum(1 for r in rows if r[4])
+    protective, settled = sum(r[5] for r in rows), sum(r[6] for r in rows)
+    peak = np.array([float(r[7]) for r in rows])
+    chatter = np.array([float(r[8]) for r in rows])
+    contact = (
+        f"peak sensed force median {np.median(peak):.0f} N, chatter under 5 N in "
+        f"{100 * (chatter < 5).mean():.1f} %"
+        if rows
+        else "-"
+    )
     print(
         f"{args.policy} on the simulated arm at {PHYSICS_HZ / steps:g} Hz commands, "
         f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
         f"{int(ok.sum())}/{len(rows)} inserted ({100 * ok.mean():.1f} %), median time {median}, "
-        f"{stops} safety stops; {time.perf_counter() - start:.0f} s wall; wrote {args.out}/runs.csv"
+        f"{stops} stops ({protective} protective, {settled} settled); {contact}; "
+        f"{time.perf_counter() - start:.0f} s wall; wrote {results}"
     )
     return 0
 

@@ -11,10 +11,13 @@ non-finite measurement or torque, a joint faster than `TrialConfig.max_joint_spe
 UR5e's 180 deg/s, where the real arm would protective-stop; the engines count such a trial as
 failed, `unstable`), a sensed tool force beyond `TrialConfig.max_tool_force` (the UR5e's
 protective stop; checked at the next reading, as the engines do, which flag it `protective_stop`)
-or a clock that runs backwards. The math runs on arrays with a leading batch dimension of 1, the
-engines' code path: on the simulated arm at 500 Hz a run follows the engine's trial to 1e-12 m in
-free motion and ends as it does (the wrench can differ from the engine's in the last bit, which
-contact can amplify; tests/test_robot.py).
+or a clock that runs backwards, and `run_skill` stops a skill that has settled
+(`TrialConfig.end_settled`: at rest or repeating the same motion, the wrench the compliance sees
+included, it cannot insert any more; a failure, as the engines end it, stopped "settled"). The
+math runs on arrays with a leading batch dimension of 1, the engines' code path: on the simulated
+arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and ends as it does (the
+wrench can differ from the engine's in the last bit, which contact can amplify;
+tests/test_robot.py).
 """
 
 from __future__ import annotations
@@ -30,6 +33,9 @@ from mjx_peg.engines.trial import (
     as_controller_params,
     control_config,
     fitted_basis,
+    is_settled,
+    settle_start,
+    settle_update,
 )
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import Policy, load_policy
@@ -121,7 +127,9 @@ class SkillRuntime:
         self.alpha = np.array([math.exp(-2.0 * math.pi * cfg.timestep * cfg.sensor.cutoff_hz)])
         self.filtered = np.zeros((1, 6))
         self.coupled = np.zeros((1, 6))
-        self.tool_force = 0.0
+        self.tool_force = self.peak_force = 0.0  # N: the last and the largest sensed force
+        self.settle = settle_start((1,))
+        self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
 
     def start(self, state: ArmState) -> None:
         """Tare the F/T reading, take the DMP's start y0 from the tcp pose, start the clock."""
@@ -130,6 +138,7 @@ class SkillRuntime:
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
         self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
         self.filtered[:], self.coupled[:], self.tool_force = 0.0, 0.0, 0.0
+        self.peak_force = 0.0
         self.t0 = self.last_t = state.t
 
     def elapsed(self, state: ArmState) -> float:
@@ -168,6 +177,7 @@ class SkillRuntime:
         reading = external_wrench(b(state.force), b(state.torque), self.tare)
         self.filtered = sensor.filter_step(self.filtered, reading, self.alpha)
         self.tool_force = float(np.linalg.norm(self.filtered[0, :3]))
+        self.peak_force = max(self.peak_force, self.tool_force)
         wrench = wrench_to_goal(
             self.filtered, b(state.ft_rot), b(state.ft_pos - state.tcp_pos), self.goal_rot
         )
@@ -189,7 +199,18 @@ class SkillRuntime:
         if not np.all(np.isfinite(u)):
             raise SafetyStop("the controller returned a non-finite torque")
         self.wrench = wrench[0]
+        cfg = self.config
+        if cfg.end_settled:  # the engines' settle test, on what the arm measures
+            step = np.array([round(self.elapsed(state) / cfg.timestep)])
+            self.settle = settle_update(self.settle, step, b(state.qd), b(state.tcp_pos), wrench,
+                                        cfg, self.period_steps)  # fmt: skip
         return u
+
+    @property
+    def settled(self) -> bool:
+        """The skill has settled (`TrialConfig.end_settled`): at rest or repeating the same
+        motion, it cannot insert any more; `run_skill` stops it."""
+        return bool(is_settled(self.settle, self.config)[0])
 
     def inserted(self, state: ArmState) -> bool:
         """The tcp (nominal tip) is inside the estimated hole's footprint near the table."""
@@ -203,8 +224,14 @@ class SkillRun:
 
     success: bool
     time_s: float  # at success, else when it stopped
-    stopped: str  # "" unless a SafetyStop ended it
+    stopped: str  # "" unless a SafetyStop ended it, or "settled" (TrialConfig.end_settled)
     log: dict[str, np.ndarray]  # t (s), tcp_pos (m), wrench (goal frame), torque (N m)
+    peak_force: float = 0.0  # N: the largest sensed tool force (TrialResult.peak_force)
+
+    @property
+    def protective_stop(self) -> bool:
+        """The sensed tool force passed TrialConfig.max_tool_force (the UR5e's stop)."""
+        return self.stopped.startswith("protective stop")
 
     @property
     def commands(self) -> int:
@@ -218,13 +245,15 @@ def run_skill(
     done: Callable[[ArmState], bool] | None = None,
 ) -> SkillRun:
     """Drive `arm` with `runtime` until `done(state)` (default: `runtime.inserted`) or the time
-    limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm."""
+    limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm, and so
+    does a skill that has settled (`SkillRuntime.settled`: stopped "settled", a failure)."""
     limit = runtime.config.time_limit_s if time_limit_s is None else time_limit_s
     if not (math.isfinite(limit) and limit > 0):
         raise ValueError(f"the time limit must be a positive number of seconds, got {limit!r}")
     done = done or runtime.inserted
     log = {"t": [], "tcp_pos": [], "wrench": [], "torque": []}
     stopped, success = "", False
+    runtime.period_steps = max(1, round(arm.period / runtime.config.timestep))
     state = arm.read()
     try:
         runtime.start(state)
@@ -236,6 +265,10 @@ def run_skill(
                 break
             if elapsed >= limit - 1e-3 * arm.period:
                 break
+            if runtime.settled:
+                arm.hold()
+                stopped = "settled"
+                break
             u = runtime._command(state)  # checked above
             arm.send(u)
             for key, value in zip(log, (elapsed, state.tcp_pos, runtime.wrench, u), strict=True):
@@ -245,4 +278,4 @@ def run_skill(
         arm.hold()
         stopped = str(stop)
     arrays = {k: np.asarray(v, dtype=np.float64) for k, v in log.items()}
-    return SkillRun(success, runtime.elapsed(state), stopped, arrays)
+    return SkillRun(success, runtime.elapsed(state), stopped, arrays, runtime.peak_force)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_peg.engines.trial import TrialConfig, is_success, sensor_params
+from mjx_peg.engines.trial import TrialConfig, chatter_of, is_success, sensor_params
 from mjx_peg.robot.arm import ArmState
 from mjx_peg.skill import sensor
 from mjx_peg.world import constants, scene
@@ -64,6 +64,9 @@ class SimArm:
         sd, fa, ta = d.sensordata, ids.ft_force_adr, ids.ft_torque_adr  # after start_trial
         self._rest = np.concatenate([sd[fa : fa + 3], sd[ta : ta + 3]])[None]
         self._history = np.zeros((1, config.sensor.max_delay_steps + 1, 6))
+        # The engines' chatter metric of the true axial force (world z: the goal's z axis is
+        # vertical), one entry per reading, which only the simulation knows.
+        self._ring, self._axial, self._reads = np.zeros((1, config.chatter_steps)), 0.0, 0
 
     def read(self) -> ArmState:
         m, d, ids = self.model, self.data, self.ids
@@ -75,6 +78,11 @@ class SimArm:
         dof = ids.dof_adr
         sd, fa, ta = d.sensordata, ids.ft_force_adr, ids.ft_torque_adr
         raw = np.concatenate([sd[fa : fa + 3], sd[ta : ta + 3]])[None]
+        rot_ft = d.site_xmat[ids.ft_site].reshape(3, 3)
+        axial = float(rot_ft[2] @ (self._rest - raw)[0, :3])
+        if self._reads >= 1:
+            self._ring[0, self._reads % self._ring.shape[1]] = abs(axial - self._axial)
+        self._axial, self._reads = axial, self._reads + 1
         reading, self._history = sensor.hardware_step(
             self._sensor, self._history, self._rest - raw, np.array([self.steps])
         )
@@ -106,6 +114,11 @@ class SimArm:
     def hold(self) -> None:
         """Hold the start's gravity-compensation torques (the sim's protective stop)."""
         self.data.ctrl[self.ids.actuator_ids] = self.hold_torque
+
+    def chatter(self) -> float:
+        """N: the engines' chatter (TrialResult.chatter) of the true axial contact force, over
+        the readings so far (one per command period)."""
+        return float(chatter_of(self._ring, self._reads)[0])
 
     def tip_pos(self) -> np.ndarray:
         """(3,) the true peg tip (site `peg_tip`), which a real robot cannot measure."""

@@ -1,12 +1,15 @@
 """Headless rendering helpers: an RGB frame from a model/data and a camera, and a PNG writer.
 
-The OpenGL back-end is chosen by `gl.choose_backend()` (headless `egl` without a display).
+The OpenGL back-end is chosen by `gl.choose_backend()` (headless `egl` without a display). A
+back-end that cannot make a context here (disabled, no display, no library) is one ValueError
+line (`RenderError`); `check_backend()` finds that out before a command does any work.
 """
 
 from __future__ import annotations
 
 import os
 import pathlib
+import warnings
 
 from mjx_peg.world import gl
 
@@ -14,6 +17,34 @@ gl.choose_backend()
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
+
+
+class RenderError(ValueError):
+    """MuJoCo cannot render with this process's MUJOCO_GL (one line)."""
+
+
+def _renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    backend = os.environ.get("MUJOCO_GL", "")
+    if gl.is_disabled():
+        raise RenderError(f"rendering is disabled (MUJOCO_GL={backend}); set MUJOCO_GL=egl")
+    try:
+        with warnings.catch_warnings():  # glfw warns about a missing display before failing
+            warnings.simplefilter("ignore")
+            return mujoco.Renderer(model, height, width)
+    except (mujoco.FatalError, AttributeError, ImportError, OSError, RuntimeError) as e:
+        text = " ".join(str(e).split())[:200]
+        raise RenderError(
+            f"cannot render with MUJOCO_GL={backend or '(unset)'} ({type(e).__name__}: {text}); "
+            "set MUJOCO_GL=egl or osmesa"
+        ) from None
+
+
+def check_backend() -> None:
+    """RenderError (one line) unless a frame can be rendered here; costs one tiny context."""
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    with _renderer(model, 16, 16) as renderer:
+        renderer.update_scene(mujoco.MjData(model))
+        renderer.render()
 
 
 def render_rgb(
@@ -39,7 +70,7 @@ def render_rgb(
         raise ValueError(
             f"unknown camera {camera!r}: valid cameras are {', '.join(names) or 'none'}"
         )
-    with mujoco.Renderer(model, height, width) as renderer:
+    with _renderer(model, height, width) as renderer:
         renderer.update_scene(data, camera=camera)
         return np.array(renderer.render(), dtype=np.uint8)
 

@@ -508,24 +508,28 @@ def _parse(argv) -> argparse.Namespace:
         prog=PROG,
         description="Write the scene MJCF for one (shape, size) and a rendered PNG of it.",
     )
-    parser.add_argument("--shape", required=True, help=f"one of {', '.join(SHAPES)}")
-    parser.add_argument("--size", required=True, help="characteristic size S in mm (D or L), > 0")
-    parser.add_argument("--out", required=True, help="output directory (created if needed)")
+    parser.add_argument("--shape", required=True, choices=SHAPES)
+    parser.add_argument(
+        "--size", required=True, type=cli.SIZE_MM, help="characteristic size S (D or L)"
+    )
+    parser.add_argument(
+        "--out", required=True, type=cli.nonempty_path, help="output directory (created if needed)"
+    )
     parser.add_argument("--camera", default="overview", help="camera name (default: overview)")
-    parser.add_argument("--width", type=int, default=960, help="PNG width in px (<= 1280)")
-    parser.add_argument("--height", type=int, default=720, help="PNG height in px (<= 960)")
+    parser.add_argument(
+        "--width", type=cli.integer(16, 1280), default=960, help="PNG width in px (default 960)"
+    )
+    parser.add_argument(
+        "--height", type=cli.integer(16, 960), default=720, help="PNG height in px (default 720)"
+    )
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the scene's .xml and .png in --out: the earlier ones are moved aside "
+        "(NAME.replaced-DATE-TIME)",
+    )
     args = parser.parse_args(argv)
-    try:
-        size_mm = float(args.size)
-    except ValueError:
-        parser.error(f"--size must be a number of mm > 0, got {args.size!r}")
-    if not (math.isfinite(size_mm) and size_mm > 0):
-        parser.error(f"--size must be a finite number of mm > 0, got {args.size!r}")
-    if args.shape not in SHAPES:
-        parser.error(f"--shape must be one of {', '.join(SHAPES)}, got {args.shape!r}")
-    if not (16 <= args.width <= 1280 and 16 <= args.height <= 960):
-        parser.error("--width must be in 16..1280 and --height in 16..960")
-    args.size_mm = size_mm
+    args.size_mm = args.size
     return args
 
 
@@ -542,28 +546,33 @@ def demo_pose(
     return data
 
 
+@cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parse(argv)
-    from mjx_peg.world import render
+    from mjx_peg.world import mujoco_log, render
 
+    mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
     size = args.size_mm / 1000.0
-    out = pathlib.Path(args.out)
     stem = f"scene_{args.shape}_{args.size_mm:g}mm"
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        xml = build_mjcf(args.shape, size)
-        (out / f"{stem}.xml").write_text(xml)
-        model = load_model(args.shape, size)
-        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
-            raise ValueError(
-                f"unknown camera {args.camera!r}: valid cameras are birdseye, overview"
-            )
-        data = demo_pose(model)
-        render.write_png(out / f"{stem}.png", model, data, args.camera, args.width, args.height)
-    except cli.USER_ERRORS as err:
-        return cli.fail(PROG, err)
-    print(out / f"{stem}.xml")
-    print(out / f"{stem}.png")
+    xml_path, png_path = args.out / f"{stem}.xml", args.out / f"{stem}.png"
+    # Everything is checked and made before --out is touched; nothing replaced without --force.
+    if args.out.is_dir() and not args.force:
+        cli.refuse_or_move([xml_path, png_path], False, PROG)
+    xml = build_mjcf(args.shape, size)
+    model = load_model(args.shape, size)
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
+        names = ", ".join(model.camera(i).name for i in range(model.ncam))
+        raise ValueError(f"unknown camera {args.camera!r}: valid cameras are {names}")
+    render.check_backend()
+    cli.prepare_dir(args.out)
+    cli.refuse_or_move([xml_path, png_path], args.force, PROG)
+    if gl.fallback_note():
+        cli.note(PROG, f"warning: {gl.fallback_note()}")
+    rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
+    cli.write_atomic(xml_path, xml)
+    cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
+    print(xml_path)
+    print(png_path)
     return 0
 
 

@@ -1,0 +1,272 @@
+"""The bird's-eye dataset: randomized renders with exact labels, on disk as PNG + JSON.
+
+    python -m mjx_peg.vision render --out runs/vision/data/train --count 4000 --seed 0
+
+A split directory holds `manifest.json` (how it was made) and, per image k, `NNNNNN.png` (the
+camera frame, 8-bit RGB) and `NNNNNN.json` (its label). Image k is drawn from its own generator
+`np.random.default_rng([seed, k])`, so a split is the same whether rendered in one go or resumed
+(the JSON is written last, atomically: an image without its JSON is rendered again).
+
+Label (JSON, SI units, world = robot base frame):
+
+    board:       shape, size (m), x, y (hole centre on the table, m), yaw (rad, as drawn)
+    yaw_mod:     yaw modulo the shape's symmetry, in [0, 2 pi / n) (circle: null)
+    size_class, shape_class: indices into SIZES_MM and SHAPES
+    hole_px:     (u, v) of the hole centre at the board top (z = HOLE_DEPTH), true camera
+    hole_px_table: (u, v) of the hole centre on the table (z = 0), true camera
+    calibration: the camera calibration a user would have (camera.py's JSON)
+    view:        every random choice (lights, materials, distractors, true camera, sensor)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mjx_peg import cli
+from mjx_peg.vision.camera import CameraCalibration
+from mjx_peg.vision.randomize import (
+    CONDITIONS,
+    SHAPES,
+    SIZES_MM,
+    apply_view,
+    load_vision_model,
+    postprocess,
+    sample_board,
+    sample_view,
+)
+from mjx_peg.world import constants
+
+SCHEMA = "mjx-peg-vision-split"
+
+
+class OtherSplit(ValueError):
+    """--out holds something else than this split (another config, or not a split)."""
+
+
+MANIFEST = "manifest.json"
+
+
+def yaw_period(shape: str) -> float:
+    """The shape's rotational symmetry period (rad); inf for the circle."""
+    n = constants.SYMMETRY[constants.SHAPES.index(shape)]
+    return 2.0 * math.pi / n if n else math.inf
+
+
+def yaw_mod(shape: str, yaw: float) -> float | None:
+    """yaw in [0, period) of the shape's symmetry; None for the circle."""
+    period = yaw_period(shape)
+    return None if math.isinf(period) else float(np.mod(yaw, period))
+
+
+class Renderer:
+    """Renders boards in the vision scene: one model, data and GL context per (shape, size)."""
+
+    def __init__(self, width: int = 1280, height: int = 960):
+        self.width, self.height = int(width), int(height)
+        self._scenes: dict = {}
+
+    def _scene(self, shape: str, size: float):
+        key = (shape, round(float(size), 6))
+        if key not in self._scenes:
+            import mujoco
+
+            model = load_vision_model(shape, size)
+            model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)
+            model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
+            data = mujoco.MjData(model)
+            self._scenes[key] = (model, data, mujoco.Renderer(model, self.height, self.width))
+        return self._scenes[key]
+
+    def raw(self, board: dict, view: dict) -> np.ndarray:
+        """(H, W, 3) uint8 rendered frame of `board` under `view`, before the sensor."""
+        model, data, renderer = self._scene(board["shape"], board["size"])
+        apply_view(model, data, board, view)
+        renderer.update_scene(data, camera="birdseye")
+        return np.array(renderer.render(), dtype=np.uint8)
+
+    def image(self, board: dict, view: dict) -> np.ndarray:
+        """(H, W, 3) uint8 camera image: the frame through the sensor model."""
+        return postprocess(self.raw(board, view), view["sensor"])
+
+    def close(self) -> None:
+        for _, _, renderer in self._scenes.values():
+            renderer.close()
+        self._scenes.clear()
+
+    def __enter__(self) -> Renderer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def make_label(board: dict, view: dict) -> dict:
+    """The JSON label of one image (see the module docstring)."""
+    true = CameraCalibration.from_json(view["camera_true"])
+    x, y = board["x"], board["y"]
+    top = true.project(np.array([x, y, constants.HOLE_DEPTH]))
+    table = true.project(np.array([x, y, 0.0]))
+    size_mm = round(board["size"] * 1000.0, 6)
+    return {
+        "board": {k: board[k] for k in ("shape", "size", "x", "y", "yaw")},
+        "yaw_mod": yaw_mod(board["shape"], board["yaw"]),
+        "shape_class": SHAPES.index(board["shape"]),
+        "size_class": SIZES_MM.index(size_mm),
+        "hole_px": [float(v) for v in top],
+        "hole_px_table": [float(v) for v in table],
+        "calibration": view["calibration"],
+        "view": view,
+    }
+
+
+def draw(config: SplitConfig, index: int) -> tuple[dict, dict]:
+    """(board, view) of image `index` of a split: from `default_rng([seed, index])` alone."""
+    rng = np.random.default_rng([config.seed, index])
+    board = sample_board(rng, config.shapes, config.sizes_mm)
+    return board, sample_view(rng, board, config.condition, config.width, config.height)
+
+
+def _png_write(path: Path, rgb: np.ndarray) -> None:
+    from PIL import Image
+
+    image = Image.fromarray(rgb)
+    cli.write_atomic(path, lambda tmp: image.save(tmp, format="PNG", compress_level=1))
+
+
+def read_png(path: str | os.PathLike) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of a PNG/JPEG file; ValueError (one line) if missing or unreadable."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"image {path} does not exist")
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"), dtype=np.uint8)
+    except (OSError, UnidentifiedImageError):
+        raise ValueError(f"cannot read image {path}: not an image file") from None
+
+
+def _json_write(path: Path, doc: dict) -> None:
+    cli.write_atomic(path, json.dumps(doc) + "\n")
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    count: int
+    seed: int
+    condition: str = "nominal"
+    width: int = 1280
+    height: int = 960
+    shapes: tuple[str, ...] = SHAPES
+    sizes_mm: tuple[float, ...] = SIZES_MM
+
+    def __post_init__(self):
+        object.__setattr__(self, "shapes", tuple(self.shapes))
+        object.__setattr__(self, "sizes_mm", tuple(float(s) for s in self.sizes_mm))
+        if not self.shapes or not set(self.shapes) <= set(SHAPES):
+            raise ValueError(f"shapes must be some of {', '.join(SHAPES)}, got {self.shapes}")
+        if not self.sizes_mm or not set(self.sizes_mm) <= set(SIZES_MM):
+            sizes = ", ".join(f"{s:g}" for s in SIZES_MM)
+            raise ValueError(f"sizes must be some of {sizes} mm, got {self.sizes_mm}")
+        if self.condition not in CONDITIONS:
+            raise ValueError(
+                f"unknown condition {self.condition!r}: choose from {', '.join(CONDITIONS)}"
+            )
+        if self.count < 1 or self.seed < 0:
+            raise ValueError("count must be >= 1 and seed >= 0")
+        if not (64 <= self.width <= 2048 and 64 <= self.height <= 2048):
+            raise ValueError("image width and height must lie in 64..2048 px")
+
+    def to_json(self) -> dict:
+        doc = {k: getattr(self, k) for k in ("count", "seed", "condition", "width", "height")}
+        return doc | {"shapes": list(self.shapes), "sizes_mm": list(self.sizes_mm)}
+
+
+def prepare_split(out, config: SplitConfig) -> Path:
+    """Create the split directory with its manifest, or check that it matches `config`."""
+    out = Path(out)
+    path = out / MANIFEST
+    doc = {"schema": SCHEMA, "config": config.to_json()}
+    if path.is_file():
+        try:
+            saved = json.loads(path.read_text())["config"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise OtherSplit(f"{path} is not a vision split manifest") from None
+        saved.setdefault("shapes", list(SHAPES))  # splits made before these options existed
+        saved.setdefault("sizes_mm", list(SIZES_MM))
+        for key in ("seed", "condition", "width", "height", "shapes", "sizes_mm"):
+            if saved.get(key) != doc["config"][key]:
+                raise OtherSplit(
+                    f"{out} holds a split with {key} {saved.get(key)!r}, not {doc['config'][key]!r}"
+                )
+        if saved.get("count") != config.count:  # growing or shrinking a split is fine
+            _json_write(path, doc)
+        return out
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise OtherSplit(f"{out} exists and is not a vision split")
+    out.mkdir(parents=True, exist_ok=True)
+    _json_write(path, doc)
+    return out
+
+
+def render_split(out, config: SplitConfig, progress: bool = True) -> int:
+    """Render every image of the split not yet on disk; returns how many were rendered."""
+    from tqdm import tqdm
+
+    out = prepare_split(out, config)
+    todo = [k for k in range(config.count) if not (out / f"{k:06d}.json").is_file()]
+    with (
+        Renderer(config.width, config.height) as renderer,
+        tqdm(
+            total=config.count,
+            initial=config.count - len(todo),
+            unit="img",
+            desc=f"rendering {out.name}",
+            disable=not progress,
+            dynamic_ncols=True,
+        ) as bar,
+    ):
+        for k in todo:
+            board, view = draw(config, k)
+            _png_write(out / f"{k:06d}.png", renderer.image(board, view))
+            _json_write(out / f"{k:06d}.json", make_label(board, view))
+            bar.update(1)
+    return len(todo)
+
+
+def split_config(split_dir) -> SplitConfig:
+    """The SplitConfig of a split directory (ValueError if it is not one)."""
+    path = Path(split_dir) / MANIFEST
+    if not path.is_file():
+        raise ValueError(f"{split_dir} holds no {MANIFEST}: not a vision split")
+    try:
+        doc = json.loads(path.read_text())
+        if doc.get("schema") != SCHEMA:
+            raise ValueError
+        saved = doc["config"]
+        saved.setdefault("shapes", list(SHAPES))  # splits made before these options existed
+        saved.setdefault("sizes_mm", list(SIZES_MM))
+        return SplitConfig(**saved)
+    except (OSError, ValueError, KeyError, TypeError):
+        raise ValueError(f"{path} is not a vision split manifest") from None
+
+
+def split_items(split_dir) -> list[tuple[Path, dict]]:
+    """(png path, label) of every finished image of a split, in index order."""
+    split_dir = Path(split_dir)
+    config = split_config(split_dir)
+    items = []
+    for k in range(config.count):
+        label_path = split_dir / f"{k:06d}.json"
+        if label_path.is_file():
+            items.append((split_dir / f"{k:06d}.png", json.loads(label_path.read_text())))
+    if not items:
+        raise ValueError(f"{split_dir} holds no rendered images yet")
+    return items
