@@ -388,18 +388,25 @@ def test_settle_update_ends_rest_and_repeating_oscillations_only():
 
 
 def test_settled_trials_end_early_with_the_outcome_of_the_full_run():
-    """The baseline's failures that repeat the same chatter end early (flagged settled); every
-    trial has the outcome of the paper's protocol (end_settled=False), the others the same
-    result to the bit."""
-    specs = _specs("circle", 6, seed=3, linear_error=0.002, angular_error=np.deg2rad(3.0))
-    config = TrialConfig(time_limit_s=20.0)
-    early = run_trials(specs, baseline_params(), engine="mujoco", config=config)
-    full = run_trials(specs, baseline_params(), engine="mujoco",
+    """Failures at rest end early (flagged settled); every trial has the outcome of the paper's
+    protocol (end_settled=False), the others the same result to the bit.
+
+    Under the credible trial a failure on the board top rarely comes to rest: the sensor's bias
+    through the compliance leaves a lateral press under which the peg creeps (0.2-0.7 mm/s over
+    10-20 s, MuJoCo's soft friction), and a creeping trial may still slide in (it must not end).
+    Trials at rest here: the skill with almost no translational stiffness hovers where it starts,
+    its wrench (noise and bias, filtered and damped) steady; beside them, trials that insert."""
+    specs = _specs("circle", 6, seed=3, linear_error=0.0005, angular_error=np.deg2rad(0.5))
+    params = np.tile(baseline_params(), (6, 1))
+    params[::2, 0] = 1e-6  # k_t: hovers at rest from the start
+    config = TrialConfig(time_limit_s=8.0)
+    early = run_trials(specs, params, engine="mujoco", config=config)
+    full = run_trials(specs, params, engine="mujoco",
                       config=config.replace(end_settled=False))  # fmt: skip
     print(early.summary(), early.steps)
     assert early.settled.sum() >= 2 and not full.settled.any()
     np.testing.assert_array_equal(early.success, full.success)
-    assert not (early.settled & early.success).any()
+    assert early.success.any() and not (early.settled & early.success).any()
     assert np.all(early.steps[early.settled] < full.steps[early.settled])
     for name, value in full.to_arrays().items():
         if name != "settled":

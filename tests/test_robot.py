@@ -73,11 +73,13 @@ def test_simulated_arm_runs_the_engines_trial():
 
 
 def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
-    """A failure that settles (the baseline chattering on the board top) stops the runtime with
-    "settled" at the control period at which the engine ends the trial."""
+    """A failure that settles (almost no translational stiffness: the arm hovers at rest, the
+    wrench it senses steady) stops the runtime with "settled" at the control period at which the
+    engine ends the trial."""
     task = TaskConfig(shapes=("circle",), sizes=(0.05,), linear_error=0.002,
                       angular_error=np.deg2rad(3.0))  # fmt: skip
-    specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params()
+    specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params().copy()
+    vec[0] = 1e-6  # k_t
     config = TrialConfig(time_limit_s=10.0)
     result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.settled[0], result.summary()
