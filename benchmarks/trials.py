@@ -178,7 +178,7 @@ _PARTS = {
     "measure": "gathering the bound fields of the live rows",
     "jacobians": "Jacobian and its derivative from cdof, cdof_dot (NumPy)",
     "ended": "end checks and results",
-    "wrench": "`wrench_in_goal_frame`",
+    "wrench": "the wrench: F/T pipeline, damping, contact metrics (`_Lane._sense`)",
     "settle": "settle test (`settle_observe`, `settle_close`)",
     "controller": "`skill_torque`, the batched controller",
 }
@@ -196,7 +196,7 @@ def profile_parts(specs, params, config):
         (cpu_engine, "jacobians", "jacobians"),
         (lane, "_ended", "ended"),
         (lane, "_finish", "ended"),
-        (cpu_engine, "wrench_in_goal_frame", "wrench"),
+        (lane, "_sense", "wrench"),
         (cpu_engine, "settle_observe", "settle"),
         (cpu_engine, "settle_close", "settle"),
         (cpu_engine, "skill_torque", "controller"),

@@ -41,7 +41,7 @@ def _mass(rng, n):
     return a @ np.swapaxes(a, -1, -2) / 6 + 0.5 * np.eye(6)
 
 
-_CENTERS, _WIDTHS = dmp.basis_centers(20, 4.0)
+_CENTERS, _WIDTHS = dmp.basis_centers(dmp.DMPConfig().n_basis, dmp.DMPConfig().phase_span)
 _WEIGHTS = dmp.fit_minimum_jerk_weights(dmp.DMPConfig())
 
 
@@ -281,7 +281,7 @@ _NO_JAX = textwrap.dedent(
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)
     config = dmp.DMPConfig()
     w = dmp.fit_minimum_jerk_weights(config)
-    c, wd = dmp.basis_centers(config.n_basis, config.alpha_s)
+    c, wd = dmp.basis_centers(config.n_basis, config.phase_span)
     f = dmp.forcing(dmp.phase(np.array([0.1, 0.2]), 1.0, 4.0), w, c, wd)
     g_m = dmp.scaled_modified_goal(np.zeros(6), np.ones((2, 6)), f, 300.0, np.zeros(6))
     ydd = dmp.dmp_acceleration(np.ones((2, 6)), np.zeros(6), g_m, k_y,

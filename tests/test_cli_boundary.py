@@ -169,7 +169,8 @@ def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch)
     with pytest.raises(RuntimeError, match="crashed"):
         robot_cli.main(argv)
     rows = (tmp_path / "runs.csv").read_text().splitlines()
-    assert rows[0] == "trial,success,time_s,commands,stopped" and len(rows) == 3
+    assert rows[0] == ",".join(robot_cli.COLUMNS) and len(rows) == 3
+    assert rows[0].startswith("trial,success,time_s,commands,stopped,protective_stop,settled")
 
 
 # -- eval.py: --force, corrupt files ----------------------------------------------------------

@@ -240,7 +240,7 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     model = _load_arm(kind)
     data, site = _start(model, kind)
     config = dmp.DMPConfig()
-    centers, widths = dmp.basis_centers(config.n_basis, config.alpha_s)
+    centers, widths = dmp.basis_centers(config.n_basis, config.phase_span)
     weights = dmp.fit_minimum_jerk_weights(config)
     start_pos = data.site_xpos[site].copy()
     start_rot = data.site_xmat[site].reshape(3, 3).copy()
@@ -252,7 +252,7 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     y0, _ = osc.task_state(start_pos, start_rot, zero, zero, goal_pos, goal_rot)
     k_y = dmp.stiffness_diag(100.0, 60.0)
     d_y = dmp.critical_damping(k_y, config.tau)
-    duration = 3.0
+    duration = 4.0
     t_ref, y_ref, _ = dmp.rollout(
         y0, np.zeros(6), k_y, config, weights, duration=duration, dt=TIMESTEP
     )

@@ -9,8 +9,8 @@ from mjx_peg.evaluation import demo
 from mjx_peg.evaluation import grid as evaluation
 
 EVAL = [
-    "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,4", "--angular-deg", "6",
-    "--trials", "6", "--time-limit", "1", "--shape", "circle,square", "--engine", "mujoco",
+    "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "3",
+    "--trials", "6", "--time-limit", "4", "--shape", "circle,square", "--engine", "mujoco",
     "--seed", "3", "--no-progress",
 ]  # fmt: skip
 
@@ -32,7 +32,7 @@ def test_replay_ends_as_the_evaluation_recorded(eval_dir, tmp_path, capsys):
         argv = ["--replay", str(eval_dir), "--range", "1", "--trial", kind, "--out", str(out)]
         assert demo.main([*argv, "--frames", "2"]) == 0
         text = capsys.readouterr().out
-        assert f"range 1 (±4 mm / ±6 deg) trial {index}:" in text
+        assert f"range 1 (±2 mm / ±3 deg) trial {index}:" in text
         then = f"{kind} after {recorded['time_s'][index]:.3f} s"
         assert f"replay: {then}; the evaluation: {then} (the same)" in text
         assert (out / "trial.png").stat().st_size > 0 and (out / "frames.png").stat().st_size > 0

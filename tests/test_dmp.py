@@ -26,17 +26,19 @@ def test_phase_solves_its_ode():
 
 
 def test_basis_spans_the_movement():
-    centers, widths = dmp.basis_centers(CONFIG.n_basis, CONFIG.alpha_s)
+    span = CONFIG.phase_span
+    centers, widths = dmp.basis_centers(CONFIG.n_basis, span)
     assert centers.shape == widths.shape == (CONFIG.n_basis,)
-    assert centers[0] == 1.0 and np.isclose(centers[-1], np.exp(-CONFIG.alpha_s))
+    assert centers[0] == 1.0 and np.isclose(centers[-1], np.exp(-span))
+    assert np.isclose(centers[-1], dmp.phase(CONFIG.duration, CONFIG.tau, CONFIG.alpha_s))
     assert np.all(np.diff(centers) < 0) and np.all(widths > 0)
-    # Centres evenly spaced in time over [0, tau].
-    np.testing.assert_allclose(np.diff(-np.log(centers)), CONFIG.alpha_s / (CONFIG.n_basis - 1))
-    np.testing.assert_array_equal(dmp.basis_widths(CONFIG.n_basis, CONFIG.alpha_s), widths)
+    # Centres evenly spaced in time over the movement [0, T].
+    np.testing.assert_allclose(np.diff(-np.log(centers)), span / (CONFIG.n_basis - 1))
+    np.testing.assert_array_equal(dmp.basis_widths(CONFIG.n_basis, span), widths)
 
 
 def test_forcing_is_finite_anywhere_in_phase(weights):
-    centers, widths = dmp.basis_centers(CONFIG.n_basis, CONFIG.alpha_s)
+    centers, widths = dmp.basis_centers(CONFIG.n_basis, CONFIG.phase_span)
     s = np.array([0.0, 1e-30, 1e-3, 0.5, 1.0, 2.0, 10.0])
     f = dmp.forcing(s, weights, centers, widths)
     assert f.shape == s.shape and np.all(np.isfinite(f))
@@ -52,8 +54,8 @@ def test_fit_is_deterministic():
 def test_free_space_reaches_goal_along_minimum_jerk(weights):
     """F = 0, K = k_ref: within 1 % of the travel of the minimum-jerk path, then at g (1e-4)."""
     k_y = np.full(6, CONFIG.k_ref)
-    t, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, duration=8.0 * CONFIG.tau, dt=2e-3)
-    p, _, _ = dmp.minimum_jerk(t, CONFIG.tau)
+    t, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, duration=4.0 * CONFIG.duration, dt=2e-3)
+    p, _, _ = dmp.minimum_jerk(t, CONFIG.duration)
     reference = Y0 + (GOAL - Y0) * p[:, None]
     deviation = np.max(np.abs(y - reference) / np.abs(GOAL - Y0))
     print(f"min-jerk deviation {100 * deviation:.3f} % of travel")
@@ -78,7 +80,7 @@ def test_constant_wrench_settles_at_goal_plus_compliance_offset(weights):
     compliance = np.diag([8e-4, 5e-4, 2e-4, 0.03, 0.02, 0.01]) + 1e-5 * rng.normal(size=(6, 6))
     wrench = np.array([10.0, -5.0, 20.0, 0.5, -1.0, 0.2])
     k_y = dmp.stiffness_diag(200.0, 50.0)
-    _, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, compliance, wrench, duration=6.0)
+    _, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, compliance, wrench, duration=10.0)
     expected = GOAL + compliance @ wrench
     np.testing.assert_allclose(y[-1], expected, rtol=0, atol=1e-7)
 
@@ -90,7 +92,7 @@ def test_off_diagonal_compliance_couples_exactly(weights):
     compliance[4, 0] = 2e-3  # x force -> tilt about y
     wrench = np.array([15.0, 0, 0, 0, 0, 0])
     k_y = dmp.stiffness_diag(300.0, 100.0)
-    _, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, compliance, wrench, duration=6.0)
+    _, y, _ = dmp.rollout(Y0, GOAL, k_y, CONFIG, weights, compliance, wrench, duration=10.0)
     offset = y[-1] - GOAL
     for j in (0, 2, 4):
         expected = compliance[j, 0] * wrench[0]

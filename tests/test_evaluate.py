@@ -411,3 +411,36 @@ def test_evaluations_from_before_early_ending_read_as_full_time_limit(tmp_path, 
     capsys.readouterr()
     assert evaluation.main([*TINY, "--out", str(out)]) == 2
     assert "full_time_limit: True there, False now" in capsys.readouterr().err
+
+
+def test_evaluations_from_before_credible_contact_are_read_but_not_resumed(tmp_path, capsys):
+    """A config.json without contact_model (written before the F/T pipeline and the protective
+    stop) ran another trial: its ranges still load (without contact metrics) and grid.csv has
+    no contact values, but it is neither resumed nor replayed."""
+    import json
+
+    from mjx_peg.evaluation import demo
+
+    out = tmp_path / "old"
+    assert evaluation.main([*TINY, "--out", str(out)]) == 0
+    grid = (out / "grid.csv").read_text().splitlines()
+    assert grid[0].endswith("settled,protective_stops,peak_force_median_n,chatter_under_5n_pct")
+    assert "nan" not in grid[1].split(",")[-3]  # the peak force of the current trial
+    assert "contact: peak sensed force median" in (out / "summary.md").read_text()
+    doc = json.loads((out / "config.json").read_text())
+    del doc["config"]["contact_model"]
+    (out / "config.json").write_text(json.dumps(doc))
+    for path in (out / "ranges").iterdir():
+        with np.load(path) as npz:
+            arrays = {k: npz[k] for k in npz.files if k not in ("chatter", "protective_stop")}
+        np.savez(path, **arrays)
+    config, _ = evaluation.read_eval_dir(out)
+    assert config.contact_model == 1
+    assert evaluation.grid_table(out, config).peak_force_median_n is not None
+    assert np.isnan(evaluation.grid_table(out, config).protective_stops).all()
+    capsys.readouterr()
+    assert evaluation.main([*TINY, "--out", str(out)]) == 2
+    assert "contact_model: 1 there, 2 now" in capsys.readouterr().err
+    argv = ["--replay", str(out), "--range", "0", "--trial", "0", "--out", str(tmp_path / "d")]
+    assert demo.main(argv) == 2
+    assert "before credible contact" in capsys.readouterr().err

@@ -43,11 +43,15 @@ def test_simulated_arm_runs_the_engines_trial():
     the last bit, ~1e-16 N; contact can amplify that, so positions after contact agree to 1 mm,
     not to the bit.)"""
     specs, vec = _specs(), baseline_params()
-    engine_tcp = []
+    engine_tcp, engine_wrench = [], []
+
+    def observe(batch, rows, wrench):
+        engine_tcp.append(batch.tcp_pos[0].copy())
+        engine_wrench.append(wrench[0].copy())
+
     result = cpu_engine.run_trials(
-        specs.take([0]), as_controller_params(vec, 1), SHORT, workers=1,
-        observer=lambda batch, rows, wrench: engine_tcp.append(batch.tcp_pos[0].copy()),
-    )  # fmt: skip
+        specs.take([0]), as_controller_params(vec, 1), SHORT, workers=1, observer=observe
+    )
     results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), SHORT, workers=1)
     assert results.success.any() and not results.success.all()  # both outcomes are compared
     for i in range(len(specs)):
@@ -62,14 +66,20 @@ def test_simulated_arm_runs_the_engines_trial():
             assert result.steps[0] == run.commands
             np.testing.assert_allclose(run.log["tcp_pos"][:200], np.array(engine_tcp)[:200],
                                        atol=1e-12, rtol=0)  # fmt: skip
+            # The same F/T readings: the trial's noise and bias, latency, filter, damping.
+            np.testing.assert_allclose(run.log["wrench"][:200], np.array(engine_wrench)[:200],
+                                       atol=1e-9, rtol=0)  # fmt: skip
+            assert np.abs(run.log["wrench"][1:200]).max() > 1e-3  # the noise is there
 
 
 def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
-    """A failure that settles (the baseline chattering on the board top) stops the runtime with
-    "settled" at the control period at which the engine ends the trial."""
+    """A failure that settles (almost no translational stiffness: the arm hovers at rest, the
+    wrench it senses steady) stops the runtime with "settled" at the control period at which the
+    engine ends the trial."""
     task = TaskConfig(shapes=("circle",), sizes=(0.05,), linear_error=0.002,
                       angular_error=np.deg2rad(3.0))  # fmt: skip
-    specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params()
+    specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params().copy()
+    vec[0] = 1e-6  # k_t
     config = TrialConfig(time_limit_s=10.0)
     result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.settled[0], result.summary()
@@ -153,6 +163,19 @@ def test_runtime_defaults_to_the_evaluation_trial():
     default.start(first), explicit.start(first)
     reading = arm.read()
     np.testing.assert_array_equal(default.torque(reading), explicit.torque(reading))
+
+
+def test_protective_stop_on_the_sensed_tool_force():
+    """A sensed force beyond TrialConfig.max_tool_force stops the skill at the next reading, and
+    the engine flags the same trial `protective_stop` after the same number of commands."""
+    specs, vec = _specs(n=1, linear_mm=3.0, angular_deg=4.0), baseline_params()
+    config = SHORT.replace(max_tool_force=15.0)
+    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, workers=1)
+    assert result.protective_stop[0] and not result.success[0]
+    arm = SimArm(specs, 0, config=config)
+    run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
+    assert not run.success and run.stopped.startswith("protective stop: sensed tool force")
+    assert run.commands == result.steps[0]
 
 
 def test_runtime_stops_on_a_non_finite_torque(monkeypatch):

@@ -241,3 +241,29 @@ def test_validate_catches_bad_arrays(default_specs):
     assert "rotation" in broken(tcp0_rot=2.0 * arrays["tcp0_rot"])
     with pytest.raises(ValueError, match="lack"):
         TrialSpec.from_arrays({"q0": arrays["q0"]})
+
+
+def test_sensor_draws_are_per_trial_and_leave_the_rest_of_the_trial_alone():
+    """The F/T sensor's key and randomization come from a child stream: the boards, errors and
+    starts of a seed are the same with or without sensor randomization."""
+    plain = sample_trials(TaskConfig(), 5, 400)
+    assert np.all(plain.sensor_cutoff_scale == 1.0) and np.all(plain.sensor_noise_scale == 1.0)
+    assert np.all(plain.sensor_delay_offset == 0) and plain.sensor_seed.dtype == np.uint32
+    assert len(np.unique(plain.sensor_seed)) == 400
+    config = TaskConfig(
+        sensor_cutoff_scale=(0.5, 2.0), sensor_noise_scale=(0.25, 4.0), sensor_delay_offset=(-1, 2)
+    )
+    randomized = sample_trials(config, 5, 400)
+    for name, value in plain.to_arrays().items():
+        if not name.startswith("sensor_"):
+            np.testing.assert_array_equal(getattr(randomized, name), value)
+    np.testing.assert_array_equal(randomized.sensor_seed, plain.sensor_seed)
+    cutoff, noise = randomized.sensor_cutoff_scale, randomized.sensor_noise_scale
+    assert cutoff.min() >= 0.5 and cutoff.max() <= 2.0 and noise.min() >= 0.25
+    # log-uniform: half the factors below the geometric middle
+    assert abs((cutoff < 1.0).mean() - 0.5) < 0.1 and abs((noise < 1.0).mean() - 0.5) < 0.1
+    assert set(randomized.sensor_delay_offset.tolist()) == {-1, 0, 1, 2}
+    with pytest.raises(ValueError, match="sensor_delay_offset"):
+        TaskConfig(sensor_delay_offset=(1, 0))
+    with pytest.raises(ValueError, match="sensor_noise_scale"):
+        TaskConfig(sensor_noise_scale=(0.0, 1.0))

@@ -30,17 +30,20 @@ from mjx_peg.engines.trial import (
     fitted_basis,
     is_settled,
     is_success,
+    sensor_params,
     settle_start,
     settle_update,
     trial_reward,
 )
+from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import (
     Basis,
     Measurement,
+    external_wrench,
     make_skill,
     skill_torque,
     start_state,
-    wrench_in_goal_frame,
+    wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
@@ -55,6 +58,8 @@ _OUTCOMES = {
     "peak_force": "peak_force",
     "tip": "tip",
     "start_distance": "start_distance",
+    "chatter": "chatter",
+    "protective_stop": "stop",
     "settled": "settled",
 }
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
@@ -88,7 +93,9 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
         [scene.grasp_quat(float(a), float(b)) for a, b in zip(tilt_x, tilt_y, strict=True)]
     )
     goal_pos, goal_rot = goal_pose(specs.hole_est_pos, specs.hole_est_yaw)
+    sp = sensor_params(specs, config)
     return dict(
+        **{f"sensor_{name}": value for name, value in sp._asdict().items()},
         board_pos3=np.concatenate([specs.board_pos, zeros[:, None]], axis=1),
         board_quat=board_quat,
         peg_pos=peg_pos,
@@ -163,6 +170,7 @@ class _Program:
         y0 = start_state(inp["goal_pos"], inp["goal_rot"], tcp_pos, tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
         skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
+        sp = sensor.SensorParams(*(inp[f"sensor_{name}"] for name in sensor.SensorParams._fields))
         tip = d.site_xpos[self.ids.tip_site]
         start_distance = jnp.linalg.norm(tip - destination(inp["board_pos"]))
         slot = dict(
@@ -180,6 +188,13 @@ class _Program:
             settled=jnp.zeros((), bool),
             settle=settle_start((), jnp),
             tip=tip,
+            sensor=sp,
+            sensor_state=sensor.initial_state(sp, cfg.sensor.max_delay_steps + 1, tare.dtype),
+            coupled=jnp.zeros(6, tare.dtype),
+            chatter_ring=jnp.zeros(cfg.chatter_steps, tare.dtype),
+            axial=jnp.zeros((), tare.dtype),
+            chatter=jnp.zeros((), tare.dtype),
+            stop=jnp.zeros((), bool),
         )
         return d, slot
 
@@ -190,15 +205,31 @@ class _Program:
         d = step1(m, d)
         tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft, lever = self._sense(m, d)
         skill = slot["skill"]
-        wrench = wrench_in_goal_frame(force, torque, slot["tare"], rot_ft, lever, skill.goal_rot)
         tip = d.site_xpos[self.ids.tip_site]
         step = slot["step"]
-        success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height)
+        stop = slot["stop"]  # set by the previous period's sensed force
+        success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height) & ~stop
         finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))
         unstable = ~finite | jnp.any(jnp.abs(d.qvel) > cfg.max_joint_speed)
-        settled = is_settled(slot["settle"], cfg) & ~success & ~unstable
-        ended_now = ~slot["ended"] & (success | unstable | settled | (step >= cfg.max_steps))
+        settled = is_settled(slot["settle"], cfg) & ~success & ~unstable & ~stop
+        ended_now = ~slot["ended"] & (success | unstable | stop | settled | (step >= cfg.max_steps))
         live = ~(slot["ended"] | ended_now)
+        # The F/T pipeline, the compliance damping and the contact metrics (as the C engine).
+        true = external_wrench(force, torque, slot["tare"])
+        sensed, sensor_state = sensor.step(slot["sensor"], slot["sensor_state"], true, step)
+        force_mag = jnp.linalg.norm(sensed[:3])
+        ring = slot["chatter_ring"]
+        count = jnp.clip(step - 1, 0, ring.shape[0])
+        chatter = jnp.where(count > 0, jnp.sum(ring) / jnp.maximum(count, 1), 0.0)
+        axial = skill.goal_rot[:, 2] @ (rot_ft @ true[:3])
+        ring = jnp.where(
+            live & (step >= 1),
+            ring.at[step % ring.shape[0]].set(jnp.abs(axial - slot["axial"])),
+            ring,
+        )
+        wrench = wrench_to_goal(sensed, rot_ft, lever, skill.goal_rot)
+        a = cfg.coupling_pole
+        coupled = a * slot["coupled"] + (1.0 - a) * wrench
         meas = Measurement(
             t=step * cfg.timestep,
             tcp_pos=tcp_pos,
@@ -208,25 +239,34 @@ class _Program:
             qvel=d.qvel,
             mass=mjx.full_m(m, d),
             bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr),
-            wrench=wrench,
+            wrench=coupled,
         )
         u = skill_torque(self.control, skill, self.basis, meas)
         u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
         d_qvel = d.qvel  # this period's, for the settle test
         d = step2(m, d.replace(ctrl=u))
-        force_mag = jnp.where(live, jnp.linalg.norm(wrench[:3]), 0.0)
+
+        def keep(new, old):  # carried state advances only while the trial runs
+            return jax.tree.map(lambda a, b: jnp.where(live, a, b), new, old)
+
         slot = dict(
             slot,
             step=jnp.where(live, step + 1, step),
-            peak_force=jnp.maximum(slot["peak_force"], force_mag),
+            peak_force=jnp.maximum(slot["peak_force"], jnp.where(live, force_mag, 0.0)),
             ended=slot["ended"] | ended_now,
             success=jnp.where(ended_now, success & ~unstable, slot["success"]),
             unstable=jnp.where(ended_now, unstable, slot["unstable"]),
             settled=jnp.where(ended_now, settled, slot["settled"]),
             tip=jnp.where(live | ended_now, tip, slot["tip"]),
+            sensor_state=keep(sensor_state, slot["sensor_state"]),
+            coupled=keep(coupled, slot["coupled"]),
+            chatter_ring=ring,
+            axial=keep(axial, slot["axial"]),
+            chatter=jnp.where(ended_now, chatter, slot["chatter"]),
+            stop=slot["stop"] | (live & (force_mag > cfg.max_tool_force)),
         )
         if cfg.end_settled:
-            slot["settle"] = settle_update(slot["settle"], step, d_qvel, tcp_pos, wrench, cfg)
+            slot["settle"] = settle_update(slot["settle"], step, d_qvel, tcp_pos, coupled, cfg)
         return d, slot
 
     # --- the batch ----------------------------------------------------------------------------
@@ -254,6 +294,8 @@ class _Program:
             peak_force=jnp.zeros(n),
             tip=jnp.zeros((n, 3)),
             start_distance=jnp.ones(n),
+            chatter=jnp.zeros(n),
+            protective_stop=jnp.zeros(n, bool),
         )
         state = (d, slot, index, jnp.asarray(0), out)
 
@@ -320,6 +362,8 @@ def run_trials(
         "peak_force": np.zeros(n),
         "final_tip_pos": np.zeros((n, 3)),
         "start_distance": np.ones(n),
+        "chatter": np.zeros(n),
+        "protective_stop": np.zeros(n, bool),
     }
     for key in sorted(set(keys)):
         rows = np.array([i for i, k in enumerate(keys) if k == key])
@@ -334,6 +378,8 @@ def run_trials(
         out_arrays["peak_force"][rows] = out["peak_force"]
         out_arrays["final_tip_pos"][rows] = out["tip"]
         out_arrays["start_distance"][rows] = out["start_distance"]
+        out_arrays["chatter"][rows] = out["chatter"]
+        out_arrays["protective_stop"][rows] = out["protective_stop"]
         if progress is not None:
             progress(len(rows))
     success = out_arrays["success"]
@@ -353,4 +399,6 @@ def run_trials(
         unstable=out_arrays["unstable"],
         steps=out_arrays["steps"],
         settled=out_arrays["settled"],
+        chatter=out_arrays["chatter"],
+        protective_stop=out_arrays["protective_stop"],
     )

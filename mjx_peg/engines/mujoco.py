@@ -14,17 +14,23 @@ of a lane is
 2. one NumPy pass over every live trial of the lane, no per-trial Python: the bound fields are
    gathered (site poses, joint velocities, bias forces, sensors, the sparse mass matrix, cdof,
    cdof_dot, cvel), the tcp Jacobian and its derivative are computed from them (`jacobians`,
-   MuJoCo's mj_jac and mj_jacDot in NumPy), then the end checks, the wrench, the settle test
-   and `skill.control_step.skill_torque`, whose torques go to `ctrl`.
+   MuJoCo's mj_jac and mj_jacDot in NumPy), then the end checks (success, joint speeds,
+   protective stop, settled), the F/T pipeline (`skill.sensor`) and the compliance damping's
+   low-pass on the tared reading with the contact metrics (`_Lane._sense`), the settle test and
+   `skill.control_step.skill_torque`, whose torques go to `ctrl`.
 
 A slot whose trial ends takes the next trial at once (`scene.start_trial` on a scratch model and
 MjData, the integration state and model fields copied in, mj_forward), so cost follows the
 simulated time actually used. Live trials occupy rows [0, n) of the lane, sorted by scene and
-simulation. Lanes run in Python threads (`threads`, default every core): while one steps in C,
-another runs its NumPy pass. A trial's arithmetic does not depend on its lane, row, batch or
-thread count, so results are bit-identical whatever `threads`, `slots_per_thread` and
-`batch_threads` (tested), and bit-identical to the engine before (one MjData per trial with
-mj_step1, mj_jacSite, mj_jacDot, mj_fullM and mj_step2; BENCHMARKS.md).
+simulation; everything a trial carries from one period to the next (the skill's constants, the
+sensor's parameters and state, the damping's filter, the metrics, the settle test) lives in
+per-row arrays (`_ROW_ARRAYS`) that move with it when rows are re-sorted. The sensor's random
+draws are counter-based functions of the trial's own `sensor_seed` and period index. Lanes run
+in Python threads (`threads`, default every core): while one steps in C, another runs its NumPy
+pass. A trial's arithmetic does not depend on its lane, row, batch or thread count, so results
+are bit-identical whatever `threads`, `slots_per_thread` and `batch_threads` (tested), and
+bit-identical to the engine before (one MjData per trial with mj_step1, mj_jacSite, mj_jacDot,
+mj_fullM and mj_step2; BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -42,22 +48,26 @@ from mjx_peg.engines.trial import (
     SettleState,
     TrialConfig,
     TrialResult,
+    chatter_of,
     control_config,
     destination,
     fitted_basis,
     is_settled,
     is_success,
+    sensor_params,
     settle_close,
     settle_observe,
     trial_reward,
 )
+from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import (
     Measurement,
     Skill,
+    external_wrench,
     make_skill,
     skill_torque,
     start_state,
-    wrench_in_goal_frame,
+    wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, mujoco_log, scene
@@ -96,6 +106,8 @@ RESULT_DTYPE = np.dtype(
         ("unstable", "?"),
         ("steps", "<i8"),
         ("settled", "?"),
+        ("chatter", "<f8"),
+        ("protective_stop", "?"),
     ]
 )
 
@@ -368,11 +380,16 @@ class _Queue:
         self.stopped = True
 
 
-# Arrays of a lane with one row per live trial, moved with their trial when rows are re-sorted.
+# Arrays of a lane with one row per live trial, moved with their trial when rows are re-sorted:
+# the skill's constants, the F/T pipeline's (`s_*`: the trial's SensorParams and SensorState), the
+# compliance damping's low-pass (`coupled`), the contact metrics and the settle test's state.
 _ROW_ARRAYS = (
     "scene sim goal_pos goal_rot y0 k_y d_y compliance tare board_pos size start_distance "
-    "peak_force step spec_index settle_low settle_high settle_last_low settle_last_high matched"
+    "peak_force step spec_index settle_low settle_high settle_last_low settle_last_high matched "
+    "s_seed s_hold s_delay s_alpha s_noise s_bias s_history s_filtered coupled chatter_ring axial "
+    "stop"
 ).split()
+_SENSOR_PARAMS = ("s_seed", "s_hold", "s_delay", "s_alpha", "s_noise", "s_bias")  # SensorParams
 
 
 class _Lane:
@@ -398,6 +415,19 @@ class _Lane:
         self.settle_last_low, self.settle_last_high = np.zeros((b, 10)), np.zeros((b, 10))
         self.matched = np.zeros(b, dtype=np.int64)
         self._settle = [getattr(self, n) for n in _ROW_ARRAYS if n.startswith("settle_")]
+        # The F/T pipeline (skill/sensor.py): each row's SensorParams (from every trial's, computed
+        # once) and SensorState; the compliance damping's low-pass of the sensed wrench (goal
+        # frame); the contact metrics: a ring of |dF| of the true axial force (chatter), its last
+        # value, the protective stop.
+        self.sensor_params = sensor_params(specs, config)
+        hist = config.sensor.max_delay_steps + 1
+        self.s_seed, self.s_hold = np.zeros(b, np.uint32), np.ones(b, np.int32)
+        self.s_delay, self.s_alpha = np.zeros(b, np.int32), np.zeros(b)
+        self.s_noise, self.s_bias = np.zeros((b, 6)), np.zeros((b, 6))
+        self.s_history, self.s_filtered = np.zeros((b, hist, 6)), np.zeros((b, 6))
+        self.coupled = np.zeros((b, 6))
+        self.chatter_ring, self.axial = np.zeros((b, config.chatter_steps)), np.zeros(b)
+        self.stop = np.zeros(b, dtype=bool)
         self._rows = [getattr(self, name) for name in _ROW_ARRAYS]
         self.control = control_config(config)
         self.n = 0
@@ -455,6 +485,10 @@ class _Lane:
         tip = d.site_xpos[sims.ids.tip_site]
         self.start_distance[row] = np.linalg.norm(tip - destination(s.board_pos[index]))
         self.peak_force[row] = 0.0
+        for name, value in zip(_SENSOR_PARAMS, self.sensor_params, strict=True):
+            getattr(self, name)[row] = value[index]
+        self.s_history[row], self.s_filtered[row], self.coupled[row] = 0.0, 0.0, 0.0
+        self.chatter_ring[row], self.axial[row], self.stop[row] = 0.0, 0.0, False
         self.step[row] = self.matched[row] = 0
         for a, value in zip(self._settle, (np.inf, -np.inf, np.inf, -np.inf), strict=True):
             a[row] = value
@@ -465,13 +499,16 @@ class _Lane:
     def _finish(self, row: int, m: _Measured, flags, sink) -> None:
         success, unstable, settled = flags
         steps, tip = self.step[row], m.site_pos[row, 1].copy()
-        success = success and not unstable
+        stop = bool(self.stop[row])
+        success = success and not unstable and not stop
+        chatter = float(chatter_of(self.chatter_ring[row], steps)[0])
         reward = trial_reward(
             np.asarray(success), tip, self.board_pos[row], self.start_distance[row],
             self.config.reward,
         )  # fmt: skip
         sink.finish((self.spec_index[row], success, steps * self.config.timestep, tip,
-                     self.peak_force[row], reward, unstable, steps, settled))  # fmt: skip
+                     self.peak_force[row], reward, unstable, steps, settled, chatter,
+                     stop))  # fmt: skip
         self.scenes[self.scene[row]].free.append(int(self.sim[row]))
         self.spec_index[row] = -1
 
@@ -493,9 +530,12 @@ class _Lane:
         ok = (np.abs(m.qvel).max(axis=-1) < cfg.max_joint_speed) & np.isfinite(tip).all(-1)
         # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
         unstable = ~ok | (np.abs(m.time - step * dt) > 0.5 * dt)
+        stop = self.stop[:n]  # the protective stop, set by the previous period's sensed force
+        success &= ~stop
         settled = is_settled(SettleState(*(None,) * 4, self.matched[:n]), cfg)
-        settled &= ~success & ~unstable
-        return success, unstable, settled, success | unstable | settled | (step >= cfg.max_steps)
+        settled &= ~success & ~unstable & ~stop
+        ended = success | unstable | stop | settled | (step >= cfg.max_steps)
+        return success, unstable, settled, ended
 
     def _end_trials(self, source, report: bool) -> _Measured | None:
         """Finish the trials that ended, refill their rows from `source`; the measurements of
@@ -523,6 +563,33 @@ class _Lane:
             self._sort(self.n, np.flatnonzero(keep))
         return None
 
+    def _sense(self, n: int, ft, ft_rot, lever, goal_rot, step) -> np.ndarray:
+        """(n, 6) the wrench the compliance sees (goal frame, at the tcp) of rows [0, n): the F/T
+        pipeline on the tared reading `ft` (n, 6), then the compliance damping's low-pass; on
+        the way the contact metrics (peak sensed force, protective stop, chatter of the true
+        axial force). Every row's state advances by one control period."""
+        true = external_wrench(ft[:, :3], ft[:, 3:], self.tare[:n])  # sensor frame
+        params = sensor.SensorParams(*(getattr(self, k)[:n] for k in _SENSOR_PARAMS))
+        state = sensor.SensorState(self.s_history[:n], self.s_filtered[:n])
+        sensed, state = sensor.step(params, state, true, step)
+        self.s_history[:n], self.s_filtered[:n] = state.history, state.filtered
+        force = np.linalg.norm(sensed[:, :3], axis=-1)
+        peak, stop = self.peak_force[:n], self.stop[:n]
+        np.maximum(peak, force, out=peak)
+        np.logical_or(stop, force > self.config.max_tool_force, out=stop)
+        # Chatter: |F_k - F_(k-1)| of the true axial force (the world force along goal z), written
+        # at k mod W for k >= 1.
+        f_world = (ft_rot * true[:, None, :3]).sum(axis=-1)
+        axial = (goal_rot[:, :, 2] * f_world).sum(axis=-1)
+        rows = np.flatnonzero(step >= 1)
+        ring = self.chatter_ring
+        ring[rows, step[rows] % ring.shape[1]] = np.abs(axial[rows] - self.axial[rows])
+        self.axial[:n] = axial
+        wrench = wrench_to_goal(sensed, ft_rot, lever, goal_rot)
+        a, coupled = self.config.coupling_pole, self.coupled[:n]
+        coupled[...] = a * coupled + (1.0 - a) * wrench
+        return coupled
+
     def _control(self, m: _Measured, observer) -> None:
         """Torques of every live trial, written to ctrl; one step of every simulation."""
         n, cfg = self.n, self.config
@@ -530,11 +597,7 @@ class _Lane:
         tcp_rot, ft_rot = m.site_rot[:, 0], m.site_rot[:, 1]
         jac, jac_dot = jacobians(m.cdof, m.cdof_dot, m.cvel, m.com, tcp_pos)
         goal_rot, step = self.goal_rot[:n], self.step[:n]
-        wrench = wrench_in_goal_frame(
-            m.ft[:, :3], m.ft[:, 3:], self.tare[:n], ft_rot, ft_pos - tcp_pos, goal_rot
-        )
-        peak = self.peak_force[:n]
-        np.maximum(peak, np.linalg.norm(wrench[:, :3], axis=-1), out=peak)
+        wrench = self._sense(n, m.ft, ft_rot, ft_pos - tcp_pos, goal_rot, step)
         t = step * cfg.timestep
         if cfg.end_settled:  # settle_update, the window test only on the rows it concerns
             low, high = self.settle_low[:n], self.settle_high[:n]

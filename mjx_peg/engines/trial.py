@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjx_peg.skill import dmp
+from mjx_peg.skill import dmp, sensor
 from mjx_peg.skill.control_step import Basis, ControlConfig
 from mjx_peg.skill.params import ControllerParams, controller_from_vector
 from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
@@ -45,15 +45,33 @@ class TrialConfig:
     # chattering or diverging controllers exceed it long before the physics returns NaN.
     max_joint_speed: float = 2.0 * math.pi
     reward: RewardConfig = dataclasses.field(default_factory=RewardConfig)
+    # The F/T sensor as the controller sees it (skill/sensor.py: the UR5e's built-in sensor).
+    sensor: sensor.SensorConfig = dataclasses.field(default_factory=sensor.SensorConfig)
+    # N. Protective stop: a sensed tool force beyond it ends the trial as a failure
+    # (`protective_stop`). The UR5e's default tool-force limit: "a protective stop if the robot
+    # hits something. This stop force limit is lower than 150 N" (UR5 user manual, safety);
+    # e-Series "Force Limit" safety function, tolerance 25 N (UR5e user manual, 3. Safety-related
+    # Functions and Interfaces); configurable in PolyScope's Safety > Robot Limits.
+    max_tool_force: float = 150.0
+    # s. Time constant T_c of the compliance damping D_c = T_c K_c (Eq. 4): the coupling sees the
+    # sensed wrench through a first-order low-pass of this time constant, long enough that no
+    # learnable vector can make the compliance loop oscillate (the analysis in
+    # skill/control_step.py: loop gains up to 190, latency up to 2 periods, 25-100 Hz filters).
+    coupling_time_constant: float = 0.75
+    chatter_window_s: float = 1.0  # s: the chatter metric averages the last window of a trial
     # A failure whose outcome can no longer change ends at once, flagged `settled` (see
     # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
-    # greatest value) of the tcp position, the sensed wrench and the fastest joint speed over a
-    # window of settle_window_s has matched the previous window's within settle_tip_m,
-    # settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times in a row:
-    # the arm is at rest, or repeats the same oscillation (a peg chattering on the board top).
+    # greatest value) of the tcp position, the wrench the compliance sees (after the F/T pipeline
+    # and the damping's low-pass: a filtered wrench still moving is not settled) and the fastest
+    # joint speed over a window of settle_window_s has matched the previous window's within
+    # settle_tip_m, settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times
+    # in a row: the arm is at rest, or repeats the same oscillation (a peg chattering on the board
+    # top).
     # end_settled=False runs every failure to the time limit, the paper's protocol.
     end_settled: bool = True
-    settle_after_s: float = 2.0  # the phase is then exp(-alpha_s 2 / tau) = 3e-4 at the defaults
+    # s: twice the DMP's 2 s movement (dmp.DMPConfig.duration); the phase is then
+    # exp(-alpha_s 4 / tau) = 3e-4 at the defaults
+    settle_after_s: float = 4.0
     settle_window_s: float = 1.0
     settle_windows: int = 1
     settle_tip_m: float = 1e-5
@@ -64,7 +82,7 @@ class TrialConfig:
     def __post_init__(self):
         positive = ("time_limit_s", "timestep", "success_height", "max_joint_speed",
                     "settle_window_s", "settle_joint_speed", "settle_tip_m", "settle_force_n",
-                    "settle_moment_nm")  # fmt: skip
+                    "settle_moment_nm", "max_tool_force", "chatter_window_s")  # fmt: skip
         if not (math.isfinite(self.settle_after_s) and self.settle_after_s >= 0):
             raise ValueError(
                 f"TrialConfig.settle_after_s must be a number >= 0, got {self.settle_after_s!r}"
@@ -79,6 +97,11 @@ class TrialConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"TrialConfig.{name} must be a positive number, got {value!r}")
+        value = self.coupling_time_constant
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(
+                f"TrialConfig.coupling_time_constant must be a number >= 0, got {value!r}"
+            )
         if self.time_limit_s < self.timestep:
             raise ValueError(
                 f"TrialConfig.time_limit_s ({self.time_limit_s}) is shorter than one step"
@@ -87,6 +110,18 @@ class TrialConfig:
     @property
     def max_steps(self) -> int:
         return int(round(self.time_limit_s / self.timestep))
+
+    @property
+    def chatter_steps(self) -> int:
+        """Control periods in the chatter window."""
+        return max(1, int(round(self.chatter_window_s / self.timestep)))
+
+    @property
+    def coupling_pole(self) -> float:
+        """a = exp(-T / T_c) of the compliance damping's low-pass; 0 without damping."""
+        if self.coupling_time_constant <= 0:
+            return 0.0
+        return math.exp(-self.timestep / self.coupling_time_constant)
 
     @property
     def settle_steps(self) -> int:
@@ -104,12 +139,17 @@ class TrialResult:
     success: np.ndarray  # (B,) bool
     time_s: np.ndarray  # (B,) time to complete on success, else the time simulated
     final_tip_pos: np.ndarray  # (B, 3) true peg tip at the end, world frame
-    peak_force: np.ndarray  # (B,) largest contact force magnitude seen by the F/T sensor (N)
+    peak_force: np.ndarray  # (B,) largest sensed force magnitude (N): what the controller saw
     reward: np.ndarray  # (B,) paper scale (38000 on success)
     unstable: np.ndarray  # (B,) bool: physics blew up or joints beyond max_joint_speed (failed)
     steps: np.ndarray  # (B,) physics steps simulated
     # (B,) bool: a failure ended early because it had settled (TrialConfig.end_settled)
     settled: np.ndarray
+    # (B,) N: mean |F_k - F_(k-1)| of the true axial contact force (goal z, no sensor) over the
+    # last TrialConfig.chatter_window_s of the trial (all of it if shorter). A force that
+    # alternates by 100 N every step reads 100; a smooth press, a few tenths.
+    chatter: np.ndarray
+    protective_stop: np.ndarray  # (B,) bool: the sensed tool force passed max_tool_force (failed)
 
     def __len__(self) -> int:
         return int(self.success.shape[0])
@@ -138,7 +178,22 @@ class TrialResult:
         return (
             f"{int(ok.sum())}/{n} succeeded ({100.0 * ok.mean():.1f} %), "
             f"median time {median:.2f} s, {int(self.unstable.sum())} unstable, "
-            f"{int(self.settled.sum())} settled, mean reward {float(self.reward.mean()):.0f}"
+            f"{int(self.protective_stop.sum())} protective stops, "
+            f"{int(self.settled.sum())} settled, "
+            f"mean reward {float(self.reward.mean()):.0f}; {self.contact_summary()}"
+        )
+
+    def contact_summary(self, min_time_s: float = 1.2, smooth: float = 5.0) -> str:
+        """Peak sensed force (median, p99) and chatter of the trials longer than `min_time_s`
+        (median, share under `smooth` N)."""
+        peak = np.percentile(self.peak_force, [50, 99]) if len(self) else (np.nan, np.nan)
+        long = self.chatter[self.time_s > min_time_s]
+        median = float(np.median(long)) if long.size else float("nan")
+        share = 100.0 * float((long < smooth).mean()) if long.size else float("nan")
+        return (
+            f"peak sensed force median {peak[0]:.0f} N, p99 {peak[1]:.0f} N; chatter median "
+            f"{median:.2f} N, {share:.1f} % under {smooth:g} N ({long.size} trials > "
+            f"{min_time_s:g} s)"
         )
 
 
@@ -156,7 +211,7 @@ def control_config(config: TrialConfig, xp=np) -> ControlConfig:
 @functools.lru_cache(maxsize=8)
 def fitted_basis(config: dmp.DMPConfig) -> Basis:
     """The forcing term's basis and weights, fitted once per DMP config (NumPy, float64)."""
-    centers, widths = dmp.basis_centers(config.n_basis, config.alpha_s)
+    centers, widths = dmp.basis_centers(config.n_basis, config.phase_span)
     weights = dmp.fit_minimum_jerk_weights(config)
     return Basis(np.asarray(weights), np.asarray(centers), np.asarray(widths))
 
@@ -180,6 +235,26 @@ def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConf
     d_end = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
     progress = xp.clip(1.0 - d_end / xp.maximum(start_distance, 1e-6), 0.0, 1.0)
     return xp.where(success, reward.success, reward.shaped * progress)
+
+
+def sensor_params(specs, config: TrialConfig) -> sensor.SensorParams:
+    """The F/T pipeline's per-trial constants of `specs` (NumPy, leading dim B)."""
+    return sensor.make_params(
+        config.sensor,
+        config.timestep,
+        np.asarray(specs.sensor_seed, dtype=np.uint32),
+        cutoff_scale=np.asarray(specs.sensor_cutoff_scale, dtype=np.float64),
+        noise_scale=np.asarray(specs.sensor_noise_scale, dtype=np.float64),
+        delay_offset=np.asarray(specs.sensor_delay_offset, dtype=np.int32),
+    )
+
+
+def chatter_of(ring: np.ndarray, steps) -> np.ndarray:
+    """(B,) chatter from a ring (B, W) of |F_k - F_(k-1)| written at index k mod W, k >= 1,
+    after `steps` (B,) control periods: the mean of the last min(steps - 1, W) entries."""
+    ring = np.atleast_2d(ring)
+    count = np.clip(np.asarray(steps) - 1, 0, ring.shape[-1])
+    return np.where(count > 0, ring.sum(axis=-1) / np.maximum(count, 1), 0.0)
 
 
 class SettleState(NamedTuple):

@@ -2,7 +2,8 @@
 
 Runs one trial with the hand-tuned baseline or a learned policy (`--policy RUN_DIR`) on the
 C MuJoCo engine and writes, into --out: `trial.png` (tip height, lateral error of the tip from the
-hole axis and the contact wrench over time) and `frames.png` (a strip of rendered frames).
+hole axis and the wrench the compliance sees over time) and `frames.png` (a strip of rendered
+frames).
 
 `--replay EVAL_DIR --range R --trial K` replays one trial of an evaluation instead: the same
 spec, policy and time limit, so a failure found in a grid can be watched. It checks that the
@@ -146,6 +147,11 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
             f"--trial must be failure, success or an index below {config.trials}, "
             f"got {args.trial!r}"
         )
+    if config.contact_model < evaluation.CONTACT_MODEL:
+        raise ValueError(
+            f"{args.replay} was evaluated before credible contact (another trial: no F/T "
+            "pipeline, no protective stop); it cannot be replayed"
+        )
     if config.policy == "baseline":
         policy = "baseline"
     elif policy_dir is None:
@@ -167,7 +173,7 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
     )
     trial = {k: recorded[k][index] for k in ("success", "time_s", "steps")}
     trial["engine"] = config.engine
-    return specs.take([index]), params, TrialConfig(time_limit_s=config.time_limit_s), text, trial
+    return specs.take([index]), params, config.trial_config(), text, trial
 
 
 def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: int) -> dict:
@@ -216,7 +222,7 @@ def _plot(run: dict, path: pathlib.Path) -> None:
     ax[1].set_ylabel("tip to hole axis (mm)")
     for i, name in enumerate(("Fx", "Fy", "Fz")):
         ax[2].plot(t, wrench[:, i], label=name)
-    ax[2].set_ylabel("contact force, goal frame (N)")
+    ax[2].set_ylabel("sensed force, damped, goal frame (N)")
     ax[2].set_xlabel("time (s)")
     ax[2].legend(loc="upper right")
     r = run["result"]

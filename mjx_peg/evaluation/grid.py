@@ -71,10 +71,15 @@ SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
 _MAX_ERROR = {"linear_mm": (0.0, 50.0), "angular_deg": (0.0, 45.0)}  # TaskConfig's, mm and deg
 _RESULT_FIELDS = (
-    "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled"
+    "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled",
+    "chatter", "protective_stop",
 )  # fmt: skip
-# Evaluations from before early ending ran every failure to the time limit.
-_OLD_DEFAULTS = {"full_time_limit": True}
+# Evaluations from before early ending ran every failure to the time limit; those from before
+# credible contact (issue 18: the F/T pipeline, the protective stop, the compliance damping) ran
+# another physics (contact_model 1) and recorded no contact metrics.
+_OLD_DEFAULTS = {"full_time_limit": True, "contact_model": 1}
+_CONTACT_FIELDS = ("chatter", "protective_stop")
+CONTACT_MODEL = 2  # the trial's physics and sensing (EvalConfig.contact_model)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,6 +99,9 @@ class EvalConfig:
     # True: every failure runs to the time limit (the paper's protocol); False: a failure that
     # has settled ends early (TrialConfig.end_settled), with the same outcome
     full_time_limit: bool = False
+    # The trial's physics and sensing: 2 since credible contact (the F/T pipeline, protective
+    # stop and compliance damping of issue 18); an evaluation made with 1 cannot be resumed.
+    contact_model: int = CONTACT_MODEL
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -341,10 +349,12 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
             arrays = {k: npz[k] for k in npz.files}
         if "success" in arrays:  # saved before early ending existed: no trial settled
             arrays.setdefault("settled", np.zeros(arrays["success"].shape, bool))
-        missing = [k for k in _RESULT_FIELDS if k not in arrays]
+        # Saved before credible contact (contact_model 1): no contact metrics.
+        optional = _CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
+        missing = [k for k in _RESULT_FIELDS if k not in arrays and k not in optional]
         if missing:
             raise ValueError(f"no {', '.join(missing)}")
-        wrong = [k for k in _RESULT_FIELDS if arrays[k].shape != (config.trials,)]
+        wrong = [k for k in _RESULT_FIELDS if k in arrays and arrays[k].shape != (config.trials,)]
         if wrong:
             raise ValueError(f"{wrong[0]} does not hold {config.trials} trials")
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
@@ -415,7 +425,8 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
     """The grid table of a finished evaluation from its per-range results."""
     out = Path(out_dir)
     lin, ang = np.array(config.ranges).T
-    rows = {k: [] for k in ("trials", "successes", "mean", "min", "max")}
+    rows = {k: [] for k in ("trials", "successes", "mean", "min", "max", "settled", "stops",
+                            "peak", "smooth")}  # fmt: skip
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         assert arrays is not None, f"range {i} has not finished"
@@ -424,6 +435,12 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
         rows["successes"].append(int(arrays["success"].sum()))
         for stat, fn in (("mean", np.mean), ("min", np.min), ("max", np.max)):
             rows[stat].append(float(fn(times)) if times.size else math.nan)
+        rows["settled"].append(int(arrays["settled"].sum()))
+        contact = all(k in arrays for k in _CONTACT_FIELDS)  # not before credible contact
+        rows["stops"].append(int(arrays["protective_stop"].sum()) if contact else math.nan)
+        rows["peak"].append(float(np.median(arrays["peak_force"])) if contact else math.nan)
+        long = arrays["chatter"][arrays["time_s"] > 1.2] if contact else np.zeros(0)
+        rows["smooth"].append(100.0 * float((long < 5.0).mean()) if long.size else math.nan)
     return es.GridTable(
         linear_mm=lin,
         angular_deg=ang,
@@ -432,6 +449,10 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
         time_mean_s=np.array(rows["mean"]),
         time_min_s=np.array(rows["min"]),
         time_max_s=np.array(rows["max"]),
+        settled=np.array(rows["settled"]),
+        protective_stops=np.array(rows["stops"], dtype=float),
+        peak_force_median_n=np.array(rows["peak"]),
+        chatter_under_5n_pct=np.array(rows["smooth"]),
     )
 
 
@@ -449,10 +470,14 @@ def load_evaluation_grid(eval_dir) -> es.GridTable:
 def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str) -> list[str]:
     per_shape = {s: [0, 0] for s in config.shapes}
     steps = settled = 0
+    contact = {k: [] for k in ("peak_force", "chatter", "protective_stop", "time_s")}
     for i in range(len(config.ranges)):
         arrays = load_range(out, config, i)
         steps += int(arrays["steps"].sum())
         settled += int(arrays["settled"].sum())
+        for k in contact:
+            if k in arrays:  # evaluations from before the sensor pipeline lack them
+                contact[k].append(arrays[k])
         for s in config.shapes:
             mine = arrays["shape_id"] == SHAPES.index(s)
             per_shape[s][0] += int(arrays["success"][mine].sum())
@@ -477,6 +502,23 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
         f"simulated: {steps} physics steps = {steps * TrialConfig().timestep:.0f} s",
+    ] + _contact_lines({k: np.concatenate(v) for k, v in contact.items() if v})
+
+
+def _contact_lines(arrays: dict[str, np.ndarray]) -> list[str]:
+    """The contact metrics of all trials (TrialResult.contact_summary), if they were recorded."""
+    if not {"peak_force", "chatter", "protective_stop", "time_s"} <= set(arrays):
+        return []
+    n = arrays["peak_force"].size
+    long = arrays["chatter"][arrays["time_s"] > 1.2]
+    p50, p99 = np.percentile(arrays["peak_force"], [50, 99])
+    return [
+        f"contact: peak sensed force median {p50:.0f} N, p99 {p99:.0f} N; protective stops "
+        f"{int(arrays['protective_stop'].sum())} ({100.0 * arrays['protective_stop'].mean():.1f} "
+        f"%); chatter (mean |dF| of the axial force over a trial's last second) under 5 N in "
+        f"{100.0 * (long < 5.0).mean() if long.size else math.nan:.1f} % of the {long.size} "
+        f"trials longer than 1.2 s, median {np.median(long) if long.size else math.nan:.2f} N"
+        f" (of {n} trials)"
     ]
 
 

@@ -276,6 +276,10 @@ def paper_order_conclusion(order, a: str, b: str) -> str:
 
 
 _TIME_COLUMNS = ("time_mean_s", "time_min_s", "time_max_s")
+# How failures ended and the contact metrics (TrialResult): failures ended early as settled,
+# protective stops, the median peak sensed force (N), the share of the trials longer than 1.2 s
+# whose chatter is under 5 N (%). grid.csv files from before them lack these columns.
+_CONTACT_COLUMNS = ("settled", "protective_stops", "peak_force_median_n", "chatter_under_5n_pct")
 GRID_COLUMNS = (
     "range",
     "linear_mm",
@@ -285,6 +289,7 @@ GRID_COLUMNS = (
     "successes",
     "success_rate_pct",
     *_TIME_COLUMNS,
+    *_CONTACT_COLUMNS,
 )
 
 
@@ -299,6 +304,10 @@ class GridTable:
     time_mean_s: np.ndarray  # (R,) mean time to complete over successful trials (NaN if none)
     time_min_s: np.ndarray  # (R,)
     time_max_s: np.ndarray  # (R,)
+    settled: np.ndarray | None = None  # (R,) int: failures ended early, settled
+    protective_stops: np.ndarray | None = None  # (R,) int
+    peak_force_median_n: np.ndarray | None = None  # (R,) median peak sensed force (N)
+    chatter_under_5n_pct: np.ndarray | None = None  # (R,) % of trials > 1.2 s with chatter < 5 N
 
     @property
     def success_pct(self) -> np.ndarray:
@@ -319,16 +328,20 @@ class GridTable:
     def csv_text(self) -> str:
         """grid.csv: one row per range (mm, deg, %, s; 'nan' for no time)."""
 
-        def fmt(value: float) -> str:
-            return f"{value:.4f}" if math.isfinite(value) else "nan"
+        def fmt(value: float, digits: int = 4) -> str:
+            return f"{value:.{digits}f}" if math.isfinite(value) else "nan"
 
         quarter, pct = self.quarter, self.success_pct
+        nan = np.full(len(self), math.nan)
+        contact = [nan if (v := getattr(self, c)) is None else v for c in _CONTACT_COLUMNS]
+        digits = (0, 0, 2, 2)  # counts, N, %
         lines = [",".join(GRID_COLUMNS)]
         for i in range(len(self)):
             lines.append(
                 f"{i},{self.linear_mm[i]:.6g},{self.angular_deg[i]:.6g},{quarter[i]},"
                 f"{self.trials[i]},{self.successes[i]},{pct[i]:.2f},{fmt(self.time_mean_s[i])},"
-                f"{fmt(self.time_min_s[i])},{fmt(self.time_max_s[i])}"
+                f"{fmt(self.time_min_s[i])},{fmt(self.time_max_s[i])},"
+                + ",".join(fmt(float(c[i]), d) for c, d in zip(contact, digits, strict=True))
             )
         return "\n".join(lines) + "\n"
 
@@ -340,8 +353,10 @@ class GridTable:
                 rows = list(csv.DictReader(f))
             if not rows:
                 raise ValueError("no rows")
-            col = {c: [r[c] for r in rows] for c in GRID_COLUMNS}
+            col = {c: [r[c] for r in rows] for c in GRID_COLUMNS if c in rows[0]}
+            contact = {c: np.array(col[c], dtype=float) for c in _CONTACT_COLUMNS if c in col}
             return cls(
+                **contact,
                 **{c: np.array(col[c], dtype=float) for c in ("linear_mm", "angular_deg")},
                 **{c: np.array(col[c], dtype=int) for c in ("trials", "successes")},
                 **{c: np.array(col[c], dtype=float) for c in _TIME_COLUMNS},

@@ -53,6 +53,13 @@ class TrainConfig:
     seed: int = 0
     engine: str = "mujoco"
     init_from: str | None = None  # run dir whose policy and value networks start this run
+    # The F/T sensor randomized per trial, like the friction (TaskConfig): filter cutoff and
+    # noise scaled by factors drawn log-uniformly, latency offset by whole control periods, around
+    # the nominal UR5e sensor of TrialConfig.sensor (50 Hz, 1 period, 1.2 N): 25-100 Hz, 0-2
+    # periods, 0.6-2.4 N. The controller is stable over all of it (skill/control_step.py).
+    sensor_cutoff_scale: tuple[float, float] = (0.5, 2.0)
+    sensor_noise_scale: tuple[float, float] = (0.5, 2.0)
+    sensor_delay_offset: tuple[int, int] = (-1, 1)
     # True: every failed trial runs to the time limit; False: a failure that has settled ends
     # early with the same outcome (TrialConfig.end_settled)
     full_time_limit: bool = False
@@ -66,6 +73,9 @@ class TrainConfig:
         object.__setattr__(self, "size_mm", tuple(float(s) for s in self.size_mm))
         object.__setattr__(self, "policy_hidden", tuple(int(h) for h in self.policy_hidden))
         object.__setattr__(self, "value_hidden", tuple(int(h) for h in self.value_hidden))
+        for name, kind in (("sensor_cutoff_scale", float), ("sensor_noise_scale", float),
+                           ("sensor_delay_offset", int)):  # fmt: skip
+            object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
         if self.prior not in PRIORS:
             raise ValueError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
         if self.engine not in ENGINES:
@@ -105,6 +115,9 @@ class TrainConfig:
             self.linear_mm,
             self.angular_deg,
             time_limit_s=self.time_limit_s,
+            sensor_cutoff_scale=tuple(self.sensor_cutoff_scale),
+            sensor_noise_scale=tuple(self.sensor_noise_scale),
+            sensor_delay_offset=tuple(self.sensor_delay_offset),
         )
 
     def trial(self) -> TrialConfig:

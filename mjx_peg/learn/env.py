@@ -39,7 +39,10 @@ from mjx_peg.policy import network, observation
 from mjx_peg.skill.params import N_PARAMS
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
-METRICS = ("return", "success", "time_s", "unstable", "settled")
+# Per trial: the outcome, how a failure ended (unstable, settled, protective stop) and the
+# contact metrics (TrialResult: peak sensed force, N; chatter of the true axial force, N).
+METRICS = ("return", "success", "time_s", "unstable", "settled", "protective_stop", "peak_force",
+           "chatter")  # fmt: skip
 # "state": what the policy (and the robot) sees; "privileged_state": the critic's input, the same
 # plus the trial's true errors and friction (observation.privileged), used only in training.
 PRIVILEGED_SIZE = observation.OBS_SIZE + len(observation.PRIVILEGED_NAMES)
@@ -113,6 +116,9 @@ class InsertionEnv(Env):
             np.where(result.success, result.time_s, np.nan),
             result.unstable,
             result.settled,
+            result.protective_stop,
+            result.peak_force,
+            result.chatter,
         )
         return tuple(np.asarray(x, np.float32).reshape(batch) for x in out)
 
@@ -138,17 +144,16 @@ class InsertionEnv(Env):
     def step(self, state: State, action: jax.Array) -> State:
         vector = network.controller_vector(action)
         scalar = jax.ShapeDtypeStruct((), jnp.float32)
-        reward, success, time_s, unstable, settled = jax.pure_callback(
+        outcome = jax.pure_callback(
             self._run_host,
-            (scalar,) * 5,
+            (scalar,) * len(METRICS),
             state.info["seed"],
             vector,
             vmap_method="broadcast_all",
         )
-        metrics = {"return": reward, "success": success, "time_s": time_s, "unstable": unstable,
-                   "settled": settled}  # fmt: skip
+        metrics = dict(zip(METRICS, outcome, strict=True))
         return state.replace(
-            reward=reward / self.trial.reward.success,
+            reward=metrics["return"] / self.trial.reward.success,
             done=jnp.ones((), jnp.float32),
             metrics=metrics,
         )

@@ -31,6 +31,9 @@ METRICS_COLUMNS = (
     "time_to_complete_s",
     "unstable_rate",
     "settled_rate",
+    "protective_stop_rate",
+    "peak_force_median_n",
+    "chatter_median_n",
     "wall_s",
     "trials_per_s",
     "policy_loss",
@@ -40,6 +43,13 @@ METRICS_COLUMNS = (
     "policy_std",
 )
 TRIALS_COLUMNS = ("trial", "return", "success", "time_s")
+# metrics.csv columns added after runs were made, each after another: (name, after)
+_ADDED_METRICS = (
+    ("settled_rate", "unstable_rate"),
+    ("protective_stop_rate", "settled_rate"),
+    ("peak_force_median_n", "protective_stop_rate"),
+    ("chatter_median_n", "peak_force_median_n"),
+)
 KEEP_CHECKPOINTS = 3
 
 
@@ -140,10 +150,12 @@ class RunDir:
                 with open(path, newline="") as f:
                     rows = list(csv.reader(f))
                 header, body = rows[0], rows[1:]
-                if path == self.metrics_path and "settled_rate" not in header:  # an older run
-                    at = header.index("unstable_rate") + 1
-                    header.insert(at, "settled_rate")
-                    body = [r[:at] + [""] + r[at:] for r in body]
+                if path == self.metrics_path:  # an older run: columns added since, left empty
+                    for name, after in _ADDED_METRICS:
+                        if name not in header:
+                            at = header.index(after) + 1
+                            header.insert(at, name)
+                            body = [r[:at] + [""] + r[at:] for r in body]
                 i = header.index(column)
                 limit = trials if column == "trials" else trials - 1
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]

@@ -32,7 +32,8 @@ PROG = "python -m mjx_peg.robot"
 PHYSICS_HZ = 1.0 / constants.TIMESTEP
 
 
-COLUMNS = ("trial", "success", "time_s", "commands", "stopped")
+COLUMNS = ("trial", "success", "time_s", "commands", "stopped", "protective_stop", "settled",
+           "peak_force_n", "chatter_n")  # fmt: skip
 RESULTS = "runs.csv"
 
 
@@ -130,7 +131,9 @@ def main(argv=None) -> int:
             for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
                 arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height)
                 run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
-                row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped)
+                row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
+                       int(run.protective_stop), int(run.stopped == "settled"),
+                       f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
                 writer.writerow(row)
                 f.flush()  # a crash keeps every finished trial
                 rows.append(row)
@@ -150,11 +153,21 @@ def main(argv=None) -> int:
     times = np.array([float(r[2]) for r in rows])
     median = f"{np.median(times[ok]):.2f} s" if ok.any() else "-"
     stops = sum(1 for r in rows if r[4])
+    protective, settled = sum(r[5] for r in rows), sum(r[6] for r in rows)
+    peak = np.array([float(r[7]) for r in rows])
+    chatter = np.array([float(r[8]) for r in rows])
+    contact = (
+        f"peak sensed force median {np.median(peak):.0f} N, chatter under 5 N in "
+        f"{100 * (chatter < 5).mean():.1f} %"
+        if rows
+        else "-"
+    )
     print(
         f"{args.policy} on the simulated arm at {PHYSICS_HZ / steps:g} Hz commands, "
         f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
         f"{int(ok.sum())}/{len(rows)} inserted ({100 * ok.mean():.1f} %), median time {median}, "
-        f"{stops} safety stops; {time.perf_counter() - start:.0f} s wall; wrote {results}"
+        f"{stops} stops ({protective} protective, {settled} settled); {contact}; "
+        f"{time.perf_counter() - start:.0f} s wall; wrote {results}"
     )
     return 0
 

@@ -4,16 +4,20 @@
     run = run_skill(arm, runtime, time_limit_s=60.0)
 
 `SkillRuntime` holds one insertion: the goal from the estimated hole (as in `task.goal_pose`),
-the tare and the DMP's start taken at the first reading, then `control_step.skill_torque` on each
-reading. It stops the skill (`SafetyStop`) on a non-finite measurement or torque, a joint faster
-than `TrialConfig.max_joint_speed` (twice the UR5e's 180 deg/s, where the real arm would
-protective-stop; the engines count such a trial as failed, `unstable`) or a clock that runs
-backwards, and `run_skill` stops a skill that has settled (`TrialConfig.end_settled`: at rest or
-repeating the same motion, it cannot insert any more; a failure, as the engines end it, stopped
-"settled"). The math runs on arrays with a leading batch dimension of 1, the engines' code path:
-on the simulated arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and
-ends as it does (the wrench can differ from the engine's in the last bit, which contact can
-amplify; tests/test_robot.py).
+the tare and the DMP's start taken at the first reading, then, on each reading, the F/T sensor's
+software filter (`sensor.filter_step`, the nominal cutoff of `TrialConfig.sensor`), the compliance
+damping's low-pass and `control_step.skill_torque`. It stops the skill (`SafetyStop`) on a
+non-finite measurement or torque, a joint faster than `TrialConfig.max_joint_speed` (twice the
+UR5e's 180 deg/s, where the real arm would protective-stop; the engines count such a trial as
+failed, `unstable`), a sensed tool force beyond `TrialConfig.max_tool_force` (the UR5e's
+protective stop; checked at the next reading, as the engines do, which flag it `protective_stop`)
+or a clock that runs backwards, and `run_skill` stops a skill that has settled
+(`TrialConfig.end_settled`: at rest or repeating the same motion, the wrench the compliance sees
+included, it cannot insert any more; a failure, as the engines end it, stopped "settled"). The
+math runs on arrays with a leading batch dimension of 1, the engines' code path: on the simulated
+arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and ends as it does (the
+wrench can differ from the engine's in the last bit, which contact can amplify;
+tests/test_robot.py).
 """
 
 from __future__ import annotations
@@ -36,13 +40,15 @@ from mjx_peg.engines.trial import (
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import Policy, load_policy
 from mjx_peg.robot.arm import Arm, ArmState
+from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.control_step import (
     Measurement,
+    external_wrench,
     make_skill,
     skill_torque,
     start_state,
-    wrench_in_goal_frame,
+    wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants
@@ -116,6 +122,12 @@ class SkillRuntime:
         self.tare = np.zeros((1, 6))
         self.t0 = self.last_t = 0.0
         self.wrench = np.zeros(6)  # the last wrench the compliance saw (goal frame)
+        # The sensor's software filter and the compliance damping (their states), the last
+        # sensed tool force.
+        self.alpha = np.array([math.exp(-2.0 * math.pi * cfg.timestep * cfg.sensor.cutoff_hz)])
+        self.filtered = np.zeros((1, 6))
+        self.coupled = np.zeros((1, 6))
+        self.tool_force = self.peak_force = 0.0  # N: the last and the largest sensed force
         self.settle = settle_start((1,))
         self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
 
@@ -125,6 +137,8 @@ class SkillRuntime:
         self.tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
         self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
+        self.filtered[:], self.coupled[:], self.tool_force = 0.0, 0.0, 0.0
+        self.peak_force = 0.0
         self.t0 = self.last_t = state.t
 
     def elapsed(self, state: ArmState) -> float:
@@ -143,6 +157,11 @@ class SkillRuntime:
             raise SafetyStop(
                 f"the arm's clock went back from {self.last_t:.3f} s to {state.t:.3f} s"
             )
+        if self.tool_force > self.config.max_tool_force:
+            raise SafetyStop(
+                f"protective stop: sensed tool force {self.tool_force:.0f} N beyond the limit "
+                f"{self.config.max_tool_force:.0f} N"
+            )
         self.last_t = state.t
 
     def torque(self, state: ArmState) -> np.ndarray:
@@ -154,11 +173,17 @@ class SkillRuntime:
         """`torque` for a reading that has passed `check`."""
         if self.skill is None:
             raise RuntimeError("SkillRuntime.torque before start")
-        b = lambda a: a[None]  # noqa: E731  one trial as a batch of one
-        wrench = wrench_in_goal_frame(
-            b(state.force), b(state.torque), self.tare, b(state.ft_rot),
-            b(state.ft_pos - state.tcp_pos), self.goal_rot,
-        )  # fmt: skip
+        cfg, b = self.config, lambda a: a[None]  # one trial as a batch of one
+        reading = external_wrench(b(state.force), b(state.torque), self.tare)
+        self.filtered = sensor.filter_step(self.filtered, reading, self.alpha)
+        self.tool_force = float(np.linalg.norm(self.filtered[0, :3]))
+        self.peak_force = max(self.peak_force, self.tool_force)
+        wrench = wrench_to_goal(
+            self.filtered, b(state.ft_rot), b(state.ft_pos - state.tcp_pos), self.goal_rot
+        )
+        a = cfg.coupling_pole
+        self.coupled = a * self.coupled + (1.0 - a) * wrench
+        wrench = self.coupled
         meas = Measurement(
             t=np.array([self.elapsed(state)]),
             tcp_pos=b(state.tcp_pos),
@@ -201,6 +226,12 @@ class SkillRun:
     time_s: float  # at success, else when it stopped
     stopped: str  # "" unless a SafetyStop ended it, or "settled" (TrialConfig.end_settled)
     log: dict[str, np.ndarray]  # t (s), tcp_pos (m), wrench (goal frame), torque (N m)
+    peak_force: float = 0.0  # N: the largest sensed tool force (TrialResult.peak_force)
+
+    @property
+    def protective_stop(self) -> bool:
+        """The sensed tool force passed TrialConfig.max_tool_force (the UR5e's stop)."""
+        return self.stopped.startswith("protective stop")
 
     @property
     def commands(self) -> int:
@@ -247,4 +278,4 @@ def run_skill(
         arm.hold()
         stopped = str(stop)
     arrays = {k: np.asarray(v, dtype=np.float64) for k, v in log.items()}
-    return SkillRun(success, runtime.elapsed(state), stopped, arrays)
+    return SkillRun(success, runtime.elapsed(state), stopped, arrays, runtime.peak_force)

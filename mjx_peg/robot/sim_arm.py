@@ -7,6 +7,10 @@ paper's UR5e took effort commands. Each `read` runs `mj_step1` (fresh kinematics
 bias; the F/T sensor still holds the previous step's reading, as on a real robot) and `send` runs
 `mj_step2`, then `mj_step` for the rest of the command period: at `command_steps=1` this is the
 C engine's step, so a run of the runtime on this arm ends as the engine's trial.
+
+The F/T reading goes through the sensor's hardware stage (`sensor.hardware_step`: sampling, the
+trial's noise and bias, latency) as the engines do, once per read (at `command_steps=1`, once per
+control period, the engines' readings); the robot runtime applies the software filter.
 """
 
 from __future__ import annotations
@@ -14,8 +18,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_peg.engines.trial import is_success
+from mjx_peg.engines.trial import TrialConfig, chatter_of, is_success, sensor_params
 from mjx_peg.robot.arm import ArmState
+from mjx_peg.skill import sensor
 from mjx_peg.world import constants, scene
 from mjx_peg.world.task import TrialSpec
 
@@ -24,7 +29,12 @@ class SimArm:
     """Trial `index` of `specs` set up and held still, ready for the skill."""
 
     def __init__(
-        self, specs: TrialSpec, index: int = 0, command_steps: int = 1, success_height: float = 0.02
+        self,
+        specs: TrialSpec,
+        index: int = 0,
+        command_steps: int = 1,
+        success_height: float = 0.02,
+        config: TrialConfig | None = None,
     ):
         if type(command_steps) is not int or command_steps < 1:
             raise ValueError(f"command_steps must be a positive integer, got {command_steps!r}")
@@ -47,6 +57,16 @@ class SimArm:
         self._jl, self._ja = np.zeros((3, nv)), np.zeros((3, nv))
         self._jdl, self._jda = np.zeros((3, nv)), np.zeros((3, nv))
         self._mass = np.zeros((nv, nv))
+        # The F/T sensor: the trial's pipeline constants, the reading at rest (the tare the
+        # runtime will take), the delay line.
+        config = config or TrialConfig()
+        self._sensor = sensor_params(s, config)
+        sd, fa, ta = d.sensordata, ids.ft_force_adr, ids.ft_torque_adr  # after start_trial
+        self._rest = np.concatenate([sd[fa : fa + 3], sd[ta : ta + 3]])[None]
+        self._history = np.zeros((1, config.sensor.max_delay_steps + 1, 6))
+        # The engines' chatter metric of the true axial force (world z: the goal's z axis is
+        # vertical), one entry per reading, which only the simulation knows.
+        self._ring, self._axial, self._reads = np.zeros((1, config.chatter_steps)), 0.0, 0
 
     def read(self) -> ArmState:
         m, d, ids = self.model, self.data, self.ids
@@ -57,6 +77,16 @@ class SimArm:
         mujoco.mj_fullM(m, d, self._mass)
         dof = ids.dof_adr
         sd, fa, ta = d.sensordata, ids.ft_force_adr, ids.ft_torque_adr
+        raw = np.concatenate([sd[fa : fa + 3], sd[ta : ta + 3]])[None]
+        rot_ft = d.site_xmat[ids.ft_site].reshape(3, 3)
+        axial = float(rot_ft[2] @ (self._rest - raw)[0, :3])
+        if self._reads >= 1:
+            self._ring[0, self._reads % self._ring.shape[1]] = abs(axial - self._axial)
+        self._axial, self._reads = axial, self._reads + 1
+        reading, self._history = sensor.hardware_step(
+            self._sensor, self._history, self._rest - raw, np.array([self.steps])
+        )
+        raw = (self._rest - reading)[0]  # back to the sensor's convention (load on the peg)
         return ArmState(
             t=self.steps * float(m.opt.timestep),  # the step count: d.time accumulates rounding
             q=d.qpos[ids.qpos_adr].copy(),
@@ -67,8 +97,8 @@ class SimArm:
             jac_dot=np.concatenate([self._jdl, self._jda])[:, dof],
             mass=self._mass[np.ix_(dof, dof)].copy(),
             bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, dof),
-            force=sd[fa : fa + 3].copy(),
-            torque=sd[ta : ta + 3].copy(),
+            force=raw[:3],
+            torque=raw[3:],
             ft_pos=d.site_xpos[ids.ft_site].copy(),
             ft_rot=d.site_xmat[ids.ft_site].reshape(3, 3).copy(),
         )
@@ -84,6 +114,11 @@ class SimArm:
     def hold(self) -> None:
         """Hold the start's gravity-compensation torques (the sim's protective stop)."""
         self.data.ctrl[self.ids.actuator_ids] = self.hold_torque
+
+    def chatter(self) -> float:
+        """N: the engines' chatter (TrialResult.chatter) of the true axial contact force, over
+        the readings so far (one per command period)."""
+        return float(chatter_of(self._ring, self._reads)[0])
 
     def tip_pos(self) -> np.ndarray:
         """(3,) the true peg tip (site `peg_tip`), which a real robot cannot measure."""

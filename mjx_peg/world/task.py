@@ -65,6 +65,13 @@ class TaskConfig:
     start_xy_jitter: float = 0.0  # start tip offset from the estimated hole, within a disc (m)
     start_tilt_jitter: float = 0.0  # start orientation from tool-down (rad)
     time_limit_s: float = 60.0  # the paper's evaluation limit
+    # F/T sensor randomization per trial, like the friction (training; skill/sensor.py has the
+    # UR5e pipeline in TrialConfig.sensor): the filter cutoff and the noise are scaled by factors
+    # drawn log-uniformly, the latency is offset by an integer number of control periods drawn
+    # uniformly (inclusive). The defaults leave the nominal sensor.
+    sensor_cutoff_scale: tuple[float, float] = (1.0, 1.0)
+    sensor_noise_scale: tuple[float, float] = (1.0, 1.0)
+    sensor_delay_offset: tuple[int, int] = (0, 0)
     # Bound on kinematics.condition_number(q, PEG_LENGTH, "full") (6x6 tcp Jacobian, linear
     # rows in m, angular in rad) of the start and goal configurations. The default workspace
     # sits at 7-12; the bound rejects the folded elbow near the base and the stretched arm.
@@ -101,9 +108,21 @@ class TaskConfig:
             "workspace_radius": dict(positive=True),
             "workspace_angle": dict(lo_min=-math.pi),
             "start_height": dict(positive=True),
+            "sensor_cutoff_scale": dict(positive=True),
+            "sensor_noise_scale": dict(positive=True),
         }
         for name, kwargs in ranges.items():
             object.__setattr__(self, name, _range(name, getattr(self, name), **kwargs))
+        try:
+            lo, hi = (int(v) for v in self.sensor_delay_offset)
+            if (lo, hi) != tuple(self.sensor_delay_offset) or lo > hi:
+                raise ValueError
+        except (TypeError, ValueError):
+            raise ValueError(
+                "TaskConfig.sensor_delay_offset must be a (low, high) pair of integers, low <= "
+                f"high, got {self.sensor_delay_offset!r}"
+            ) from None
+        object.__setattr__(self, "sensor_delay_offset", (lo, hi))
         if self.workspace_angle[1] > math.pi or self.board_yaw_range[1] > math.pi:
             raise ValueError("TaskConfig.workspace_angle and board_yaw_range must lie in [-pi, pi]")
         for name, lower in (("time_limit_s", 0.0), ("max_condition", 1.0)):
@@ -190,6 +209,10 @@ _SPEC_FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "q0": ((6,), np.float64),
     "linear_range": ((), np.float64),
     "angular_range": ((), np.float64),
+    "sensor_seed": ((), np.uint32),  # key of the F/T pipeline's random draws (skill/sensor.py)
+    "sensor_cutoff_scale": ((), np.float64),  # filter cutoff / the nominal one
+    "sensor_noise_scale": ((), np.float64),  # noise / the nominal one
+    "sensor_delay_offset": ((), np.int32),  # control periods added to the nominal latency
 }
 
 
@@ -211,6 +234,10 @@ class TrialSpec:
     q0: np.ndarray  # (B, 6) start joint configuration, wrapped to (-pi, pi]
     linear_range: np.ndarray  # (B,) +- range the linear errors were drawn from (m)
     angular_range: np.ndarray  # (B,) +- range the angular errors were drawn from (rad)
+    sensor_seed: np.ndarray  # (B,) uint32 key of the F/T sensor's noise and bias (skill/sensor.py)
+    sensor_cutoff_scale: np.ndarray  # (B,) F/T filter cutoff relative to TrialConfig.sensor's
+    sensor_noise_scale: np.ndarray  # (B,) F/T noise relative to TrialConfig.sensor's
+    sensor_delay_offset: np.ndarray  # (B,) int32 F/T latency added to TrialConfig.sensor's
 
     def __len__(self) -> int:
         return int(np.shape(self.shape_id)[0])
@@ -314,6 +341,21 @@ def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[st
     )
 
 
+def _sensor_draws(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+    """The F/T sensor's per-trial draws: its key and the randomization of TaskConfig."""
+
+    def log_uniform(bounds):
+        return np.exp(rng.uniform(np.log(bounds[0]), np.log(bounds[1]), n))
+
+    low, high = config.sensor_delay_offset
+    return dict(
+        sensor_seed=rng.integers(0, 2**32, n, dtype=np.uint32),
+        sensor_cutoff_scale=log_uniform(config.sensor_cutoff_scale),
+        sensor_noise_scale=log_uniform(config.sensor_noise_scale),
+        sensor_delay_offset=rng.integers(low, high + 1, n, dtype=np.int32),
+    )
+
+
 def goal_pose(hole_est_pos: np.ndarray, hole_est_yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nominal goal of the tcp: the estimated hole centre at the table top, tool down, aligned.
 
@@ -381,5 +423,8 @@ def sample_trials(
     if not accepted:
         accepted.append({n: v[:0] for n, v in _candidates(config, rng, 0).items()})
         accepted[0]["q0"] = np.zeros((0, 6))
-    arrays = {name: np.concatenate([a[name] for a in accepted]) for name in _SPEC_FIELDS}
+    arrays = {name: np.concatenate([a[name] for a in accepted]) for name in accepted[0]}
+    # The sensor's draws come from a child stream: the trials of a seed stay what they were
+    # before the sensor was randomized.
+    arrays.update(_sensor_draws(config, rng.spawn(1)[0], batch))
     return TrialSpec.from_arrays(arrays).validate()

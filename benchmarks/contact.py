@@ -1,0 +1,69 @@
+"""Credible contact (issue 18): success and contact metrics of a controller on a fixed set.
+
+    python benchmarks/contact.py [--trials 500] [--time-limit 60] [--seed 1] [--first]
+        [--full-time-limit] [--threads N]
+
+The set: circle + square 50 mm, +-4 mm / +-6 deg, `sample_trials(seed)`, the C engine
+(`mujoco.batch` lanes, one per core by default), the default TrialConfig (the UR5e's F/T
+pipeline, the compliance damping, the 2 s approach, the 150 N protective stop; failures that have
+settled end early unless --full-time-limit). Prints success, protective stops, settled failures,
+the peak sensed force (median, p99) and the chatter (mean |dF| of the true axial force over the
+last second of trials longer than 1.2 s: median and the share under 5 N), the wall time and the
+physics steps per second. `--first` runs the first hand-tuned baseline (k = 300, compliance
+1e-3 m/N and 0.05 rad/(N m), +-3e-3 m/(N m) moment-to-shift) instead of the current one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from mjx_peg.engines import run_trials
+from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.params import ControllerParams, vector_from_controller
+from mjx_peg.world.task import TaskConfig, sample_trials
+
+
+def first_baseline() -> np.ndarray:
+    """(38,) the hand-tuned baseline before issue 18."""
+    c = np.diag([1e-3, 1e-3, 1e-3, 0.05, 0.05, 0.01])
+    c[1, 3], c[0, 4] = 3e-3, -3e-3
+    k = np.asarray(300.0)
+    return np.asarray(vector_from_controller(ControllerParams(k, k, c)))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--trials", type=int, default=500)
+    p.add_argument("--time-limit", type=float, default=60.0)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--first", action="store_true", help="the baseline before issue 18")
+    p.add_argument("--full-time-limit", action="store_true", help="run every failure to the limit")
+    p.add_argument("--threads", type=int, default=None, help="lanes (default: every core)")
+    args = p.parse_args()
+    task = TaskConfig(shapes=("circle", "square"), sizes=(0.05,), linear_error=0.004,
+                      angular_error=math.radians(6.0))  # fmt: skip
+    specs = sample_trials(task, args.seed, args.trials)
+    vec = first_baseline() if args.first else baseline_params()
+    start = time.perf_counter()
+    config = TrialConfig(time_limit_s=args.time_limit, end_settled=not args.full_time_limit)
+    result = run_trials(specs, vec, engine="mujoco", config=config, threads=args.threads)
+    wall = time.perf_counter() - start
+    steps = int(result.steps.sum())
+    times = result.time_s[result.success]
+    p10, p50, p90 = np.percentile(times, [10, 50, 90]) if times.size else (np.nan,) * 3
+    print(
+        f"{'first' if args.first else 'current'} baseline, {args.trials} trials, seed "
+        f"{args.seed}, {args.time_limit:g} s"
+        f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"
+    )
+    print(f"time to insert p10 / p50 / p90: {p10:.2f} / {p50:.2f} / {p90:.2f} s; wall {wall:.0f} s "
+          f"for {steps:,} physics steps ({steps / wall:,.0f} steps/s)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
