@@ -138,7 +138,7 @@ def run_trials(
                     config,
                     threads or 1,
                     options,
-                )  # fmt: skip
+                )
                 for rows in shards
             ]
         pending = futures
