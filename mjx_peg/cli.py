@@ -155,6 +155,18 @@ TIME_LIMIT_S = number(0.01, 600.0, "s")  # simulated time per trial (the paper's
 SEED = integer(0, 2**32 - 1)  # NumPy's and JAX's seeds
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
 WORKERS = integer(1, cores(), "the cores this process may use")  # engine worker processes
+
+
+def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> None:
+    """--processes: the CPU engine's lanes in worker processes (train.py, eval.py)."""
+    parser.add_argument(
+        "--processes",
+        type=WORKERS,
+        help=f"CPU engine: its lanes in this many worker processes, {lanes_flag} lanes each "
+        "(default: lanes as threads of this process; processes scale past the GIL)",
+    )
+
+
 MAX_RANGES = 10_000  # error ranges in one evaluation grid (the paper's has 350)
 MAX_AXIS = 1_000  # values of one grid axis
 MAX_GRID_TRIALS = 10_000_000  # trials in one evaluation grid (the paper's has 70,000)

@@ -638,12 +638,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--threads", type=cli.integer(1, 64), help="engine option threads (if it takes it)"
     )
     p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
-    p.add_argument(
-        "--processes",
-        type=cli.WORKERS,
-        help="mujoco engine: run its lanes in this many worker processes, --threads lanes each "
-        "(default: lanes as threads of this process; processes scale past the GIL)",
-    )
+    cli.add_processes_option(p, "--threads")
     p.add_argument(
         "--chunk-trials",
         type=cli.TRIALS,

@@ -57,12 +57,7 @@ def parser() -> argparse.ArgumentParser:
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
     p.add_argument("--workers", type=cli.WORKERS, help="CPU engine threads (default: all cores)")
-    p.add_argument(
-        "--processes",
-        type=cli.WORKERS,
-        help="CPU engine: its lanes in this many worker processes, --workers lanes each (default: "
-        "lanes as threads of this process; processes scale past the GIL)",
-    )
+    cli.add_processes_option(p, "--workers")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
