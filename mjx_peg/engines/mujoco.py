@@ -592,6 +592,15 @@ class _Lane:
 
     def _control(self, m: _Measured, observer) -> None:
         """Torques of every live trial, written to ctrl; one step of every simulation."""
+        torques = self._torques(m, observer)
+        for k, (a, b, ids) in enumerate(self.blocks):
+            if b > a:
+                self.scenes[k].step(ids, torques[a:b])
+        np.add(self.step[: self.n], 1, out=self.step[: self.n])
+
+    def _torques(self, m: _Measured, observer) -> np.ndarray:
+        """(n, 6) joint torques of rows [0, n): the control period's NumPy pass (Jacobians, the
+        sensed wrench, the settle test, the controller); the physics is not stepped."""
         n, cfg = self.n, self.config
         tcp_pos, tip_pos, ft_pos = m.site_pos[:, 0], m.site_pos[:, 1], m.site_pos[:, 2]
         tcp_rot, ft_rot = m.site_rot[:, 0], m.site_rot[:, 1]
@@ -630,11 +639,7 @@ class _Lane:
         skill = Skill(*(a[:n] for a in (self.goal_pos, self.goal_rot, self.y0, self.k_y,
                                          self.d_y, self.compliance)))  # fmt: skip
         torques = skill_torque(self.control, skill, self.basis, meas)
-        torques = np.where(np.isfinite(torques), torques, 0.0)
-        for k, (a, b, ids) in enumerate(self.blocks):
-            if b > a:
-                self.scenes[k].step(ids, torques[a:b])
-        np.add(step, 1, out=step)
+        return np.where(np.isfinite(torques), torques, 0.0)
 
     @property
     def qpos(self) -> np.ndarray:
@@ -748,11 +753,13 @@ def run_trials(
     each) of `threads` lanes each (default 1); None (the default): lanes in this process.
     """
     n = len(specs)
+    if workers is not None and threads is not None and workers != threads:
+        raise ValueError(f"threads ({threads}) and workers ({workers}) name the same option")
+    threads = threads if threads is not None else workers
     if processes is not None:
         processes = _count("processes", processes, 1)
         if observer is not None:
             raise ValueError("an observer runs in the lane's thread: it needs processes=None")
-        threads = threads if threads is not None else workers
         for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
                             ("batch_threads", batch_threads)):  # fmt: skip
             _count(name, value, 1)  # bad values: one error here, before any process starts
@@ -762,9 +769,6 @@ def run_trials(
             specs, params, config, processes, threads=threads, progress=progress,
             slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
         )  # fmt: skip
-    if workers is not None and threads is not None and workers != threads:
-        raise ValueError(f"threads ({threads}) and workers ({workers}) name the same option")
-    threads = threads if threads is not None else workers
     if observer is not None and threads not in (None, 1):
         raise ValueError("an observer runs in the lane's thread: it needs threads=1")
     default = 1 if observer is not None else available_cores()
