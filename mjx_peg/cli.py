@@ -157,14 +157,34 @@ TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all 
 WORKERS = integer(1, cores(), "the cores this process may use")  # engine worker processes
 
 
+PROCESSES = integer(0, cores(), "0: lanes as threads of this process; at most the cores")
+
+
 def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> None:
     """--processes: the CPU engine's lanes in worker processes (train.py, eval.py)."""
     parser.add_argument(
         "--processes",
-        type=WORKERS,
+        type=PROCESSES,
         help=f"CPU engine: its lanes in this many worker processes, {lanes_flag} lanes each "
-        "(default: lanes as threads of this process; processes scale past the GIL)",
+        f"(default: one per core, {cores()} here; processes scale past the GIL, the same "
+        "results); 0: lanes as threads of this process",
     )
+
+
+def resolve_processes(value: int | None, engine: str) -> int | None:
+    """--processes as the engine option `processes`: None where the lanes stay in this process.
+
+    Unset: one worker process per core on the mujoco engine (1.25-1.5x over threads on 2 cores,
+    bit-identical results, BENCHMARKS.md "Lanes in worker processes"), none on a single core or
+    on another engine.
+    """
+    if engine != "mujoco":
+        if value:
+            raise ValueError(f"--processes is an option of the mujoco engine, not of {engine}")
+        return None
+    if value is None:
+        value = cores() if cores() > 1 else 0
+    return value or None
 
 
 MAX_RANGES = 10_000  # error ranges in one evaluation grid (the paper's has 350)

@@ -320,6 +320,7 @@ def test_every_cli_refuses_bad_values_alike(prog, argv, message, tmp_path, capsy
         ("train.py", ["--num-envs", "100000000"]),
         ("train.py", ["--workers", "100000"]),
         ("train.py", ["--processes", "100000"]),
+        ("eval.py", ["--processes", "-1"]),
         ("train.py", ["--processes", "2", "--engine", "mjx"]),
         ("eval.py", ["--processes", "2", "--engine", "mjx"]),
         ("train.py", ["--checkpoint-every", "nan"]),
@@ -336,6 +337,22 @@ def test_counts_that_would_exhaust_memory_are_refused_up_front(prog, argv, tmp_p
     assert main([*required, *extra, *argv]) == 2
     _one_line(capsys, prog)
     assert not (tmp_path / "o").exists()
+
+
+def test_processes_default_to_one_per_core_on_the_cpu_engine(monkeypatch):
+    """--processes unset: a worker process per core on the mujoco engine (none on one core, none
+    on mjx); 0: lanes as threads of this process; a count on mjx is an error."""
+    from mjx_peg import cli
+
+    for cores, wanted in ((1, None), (2, 2), (16, 16)):
+        monkeypatch.setattr(cli, "cores", lambda n=cores: n)
+        assert cli.resolve_processes(None, "mujoco") == wanted
+        assert cli.resolve_processes(0, "mujoco") is None
+        assert cli.resolve_processes(1, "mujoco") == 1
+        assert cli.resolve_processes(None, "mjx") is None
+        assert cli.resolve_processes(0, "mjx") is None
+        with pytest.raises(ValueError, match="option of the mujoco engine, not of mjx"):
+            cli.resolve_processes(2, "mjx")
 
 
 @pytest.mark.parametrize("prog", ["eval.py", "mjx-peg-demo", "python -m mjx_peg.robot"])

@@ -721,7 +721,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy = str(args.policy)
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
-    options = {k: getattr(args, k) for k in ("threads", "workers", "processes") if getattr(args, k)}
+    options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+    processes = cli.resolve_processes(args.processes, config.engine)
+    if processes is not None:
+        options["processes"] = processes
     check_engine_options(config.engine, options)
     other = None if args.compare is None else load_evaluation_grid(args.compare)
     paper_name = args.paper

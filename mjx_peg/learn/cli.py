@@ -56,7 +56,12 @@ def parser() -> argparse.ArgumentParser:
         help="run every failed trial to the time limit (default: a failure that has settled, "
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
-    p.add_argument("--workers", type=cli.WORKERS, help="CPU engine threads (default: all cores)")
+    p.add_argument(
+        "--workers",
+        type=cli.WORKERS,
+        help="CPU engine threads: per worker process (default 1), or of this process with "
+        "--processes 0 (default: all cores)",
+    )
     cli.add_processes_option(p, "--workers")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
@@ -118,8 +123,7 @@ def main(argv=None) -> int:
     config = resolve_config(args)
     from mjx_peg.engines import resolve_engine
 
-    if args.processes is not None and resolve_engine(config.engine) != "mujoco":
-        raise ValueError("--processes is an option of the mujoco engine, not of mjx")
+    processes = cli.resolve_processes(args.processes, resolve_engine(config.engine))
     if config.init_from:
         cli.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
@@ -129,7 +133,8 @@ def main(argv=None) -> int:
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(out)  # written only on a warning, once the run directory exists
-    options = {k: getattr(args, k) for k in ("workers", "processes") if getattr(args, k)}
+    options = {"workers": args.workers, "processes": processes}
+    options = {k: v for k, v in options.items() if v is not None}
     summary = train(
         config,
         out,
