@@ -1,0 +1,70 @@
+"""A markdown table of `benchmarks/contact.py --csv` runs of the same trials, paired.
+
+    python benchmarks/contact_table.py --reference runs/contact/paper_nominal.csv \
+        runs/contact/paper_*.csv
+
+One row per CSV: success, protective stops, settled failures, the peak sensed force (median,
+p99), the chatter's median and its share under 5 N (trials longer than 1.2 s), the time to
+insert (p50), and against --reference (the same trials): trials lost and gained and the exact
+McNemar p (two-sided binomial test on the trials whose outcome differs), and the difference in
+success points.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+import numpy as np
+from scipy.stats import binomtest
+
+
+def load(path) -> dict[str, np.ndarray]:
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return {name: np.asarray(data[name]) for name in data.dtype.names}
+
+
+def row(name: str, run: dict, reference: dict | None) -> str:
+    ok = run["success"] > 0.5
+    n = ok.size
+    peak = np.percentile(run["peak_force"], [50, 99])
+    long = run["chatter"][run["time_s"] > 1.2]
+    insert = np.median(run["time_s"][ok]) if ok.any() else float("nan")
+    cells = [
+        name,
+        f"{100 * ok.mean():.1f} % ({int(ok.sum())} / {n})",
+        f"{int(run['protective_stop'].sum())}",
+        f"{int(run['settled'].sum())}",
+        f"{peak[0]:.0f} / {peak[1]:.0f} N",
+        f"{np.median(long):.2f} N, {100 * (long < 5).mean():.1f} %",
+        f"{insert:.1f} s",
+    ]
+    if reference is not None:
+        ref = reference["success"] > 0.5
+        if ref.size != n:
+            raise SystemExit(f"{name}: {n} trials, the reference has {ref.size}")
+        lost, gained = int((ref & ~ok).sum()), int((~ref & ok).sum())
+        p = binomtest(lost, lost + gained).pvalue if lost + gained else 1.0
+        change = 100 * (ok.mean() - ref.mean())
+        cells.append(f"{change:+.1f} ({lost} lost, {gained} gained, p = {p:.2g})")
+    return "| " + " | ".join(cells) + " |"
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("csv", nargs="+", type=pathlib.Path)
+    p.add_argument("--reference", type=pathlib.Path, help="the run the others are paired with")
+    args = p.parse_args()
+    reference = load(args.reference) if args.reference else None
+    header = ["run", "success", "protective stops", "settled", "peak median / p99",
+              "chatter median, < 5 N", "insert p50"]  # fmt: skip
+    if reference is not None:
+        header.append(f"vs {args.reference.stem} (points)")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for path in args.csv:
+        print(row(path.stem, load(path), reference))
+
+
+if __name__ == "__main__":
+    main()
