@@ -32,6 +32,7 @@ from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import ControllerParams, vector_from_controller
 from mjx_peg.skill.sensor import SensorConfig
+from mjx_peg.world.constants import HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 
@@ -59,12 +60,16 @@ def sensor_variant(name: str) -> SensorConfig:
 SENSOR_VARIANTS = ("nominal", "nofilter", "cutoff0.5", "cutoff2", "delay+2", "noise2")
 
 
-def write_csv(path: str, result) -> None:
+def write_csv(path: str, result, specs) -> None:
+    """One row per trial; where the peg tip ended: its depth below the board top (mm) and its
+    distance from the hole axis (mm)."""
     columns = ("success", "time_s", "peak_force", "chatter", "protective_stop", "settled",
                "unstable", "steps")  # fmt: skip
-    rows = [",".join(("trial",) + columns)]
+    depth = (HOLE_DEPTH - result.final_tip_pos[:, 2]) * 1000
+    off_axis = np.linalg.norm(result.final_tip_pos[:, :2] - specs.board_pos, axis=1) * 1000
+    rows = [",".join(("trial",) + columns + ("tip_depth_mm", "tip_off_axis_mm"))]
     for k in range(len(result)):
-        values = [getattr(result, c)[k] for c in columns]
+        values = [getattr(result, c)[k] for c in columns] + [depth[k], off_axis[k]]
         rows.append(",".join([str(k)] + [f"{float(v):.6g}" for v in values]))
     with open(path, "w") as f:
         f.write("\n".join(rows) + "\n")
@@ -115,7 +120,7 @@ def main() -> None:
     print(f"time to insert p10 / p50 / p90: {p10:.2f} / {p50:.2f} / {p90:.2f} s; wall {wall:.0f} s "
           f"for {steps:,} physics steps ({steps / wall:,.0f} steps/s)")  # fmt: skip
     if args.csv:
-        write_csv(args.csv, result)
+        write_csv(args.csv, result, specs)
 
 
 if __name__ == "__main__":
