@@ -174,9 +174,9 @@ def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> No
 def resolve_processes(value: int | None, engine: str) -> int | None:
     """--processes as the engine option `processes`: None where the lanes stay in this process.
 
-    Unset: one worker process per core on the mujoco engine (1.25-1.5x over threads on 2 cores,
-    bit-identical results, BENCHMARKS.md "Lanes in worker processes"), none on a single core or
-    on another engine.
+    Unset: one worker process per core on the mujoco engine (1.14-1.56x over threads on 2 cores,
+    bit-identical results, BENCHMARKS.md "Where the CPU engine's time goes"), none on a single
+    core or on another engine.
     """
     if engine != "mujoco":
         if value:

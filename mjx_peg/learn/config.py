@@ -2,7 +2,7 @@
 
 Presets (`python train.py --preset NAME`):
 - `quick` (default): circle + square at 50 mm, errors +-4 mm / +-6 deg, a 20 s trial limit,
-  12,288 trials; ~20 min on a 2-core CPU, and shows learning.
+  12,288 trials; ~22 min on a 2-core CPU.
 - `paper`: the paper's training conditions (section 5.2): circle + square at 50 mm, errors up to
   +-8 mm / +-12 deg, friction 0.2-0.9; 16,384 trials (the paper's curve levels off after ~8,000).
 - `transfer`: re-train a finished run (`--init-from RUN_DIR`) on the unseen triangle, same
@@ -158,8 +158,9 @@ PRESETS: dict[str, TrainConfig] = {
         linear_mm=8.0,
         angular_deg=12.0,
         trials=800,
-        # 20 updates of 40 trials: 10 of 80 left triangle success at 4 mm / 6 deg at 42.8 %
-        # against 40.0 % before transfer (McNemar p = 0.07); 20 of 40 reached 49.6 % (p = 8e-7).
+        # Before credible contact, 20 updates of 40 trials: 10 of 80 left triangle success at
+        # 4 mm / 6 deg at 42.8 % against 40.0 % before transfer (McNemar p = 0.07); 20 of 40
+        # reached 49.6 % (p = 8e-7). Under the credible trial it lowers it (README "Training").
         num_envs=40,
     ),
 }
