@@ -61,7 +61,8 @@ def note(prog: str, text: str) -> None:
 def entry(prog: str, interrupted: str = "interrupted") -> Callable:
     """Decorate a CLI's main(argv) -> int: every user error is one line and exit status 2, an
     argparse exit returns its status, Ctrl-C is one line and 130. Other exceptions (bugs) keep
-    their traceback."""
+    their traceback. The CPU engine's worker processes, if the command started them, stop when
+    it returns (a main() called from Python leaves none behind)."""
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
@@ -75,6 +76,10 @@ def entry(prog: str, interrupted: str = "interrupted") -> Callable:
             except KeyboardInterrupt:
                 print(f"{prog}: {interrupted}", file=sys.stderr)
                 return EXIT_INTERRUPTED
+            finally:
+                workers = sys.modules.get("mjx_peg.engines.processes")
+                if workers is not None:
+                    workers.shutdown()
 
         return run
 

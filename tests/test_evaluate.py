@@ -273,8 +273,11 @@ TINY = [
 
 
 def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, capsys):
+    from mjx_peg.engines import processes
+
     full, resumed = tmp_path / "full", tmp_path / "resumed"
     assert evaluation.main([*TINY, "--out", str(full)]) == 0
+    assert processes._pool is None  # its worker processes (one per core) stopped with it
     for name in ("grid.csv", "summary.md", "success_heatmap.png", "time_heatmap.png"):
         assert (full / name).stat().st_size > 0, name
     assert (full / "paper_comparison.png").stat().st_size > 0  # circle + square, 50 mm: nominal
