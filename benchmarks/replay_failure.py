@@ -61,12 +61,12 @@ def main() -> None:
           f"{args.old_policy} under the old trial (5 s) is trial {index}; at 60 s: "
           f"{confirm.summary()}")  # fmt: skip
     now = TrialConfig()
-    for label in (args.policy, "baseline"):
-        _, controller = evaluation.load_controller(label)
-        result = run_trials(one, controller(one), engine="mujoco", config=now)
-        print(f"under the current trial, {label}: {result.summary()}")
     _, controller = evaluation.load_controller(args.policy)
-    run = demo.run_demo(one, controller(one), now, frames=0)
+    run = demo.run_demo(one, controller(one), now, frames=0)  # its result and its trace
+    print(f"under the current trial, {args.policy}: {run['result'].summary()}")
+    _, baseline = evaluation.load_controller("baseline")
+    result = run_trials(one, baseline(one), engine="mujoco", config=now)
+    print(f"under the current trial, baseline: {result.summary()}")
     demo._plot(run, args.out)
     print(f"wrote {args.out}")
 
