@@ -9,7 +9,6 @@ trials.csv, checkpoint every `checkpoint_every_s` seconds and at the end, then e
 from __future__ import annotations
 
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,7 +20,7 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 from mjx_peg import cli
-from mjx_peg.learn import ppo
+from mjx_peg.learn import ppo, restore_noise
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
 from mjx_peg.learn.env import InsertionEnv
@@ -64,21 +63,10 @@ def _save(manager: ocp.CheckpointManager, state: ppo.TrainingState) -> None:
     manager.wait_until_finished()
 
 
-def _quiet_closed_loop(unraisable) -> None:
-    """sys.unraisablehook: drop the 'Event loop is closed' reports of TensorStore reads that
-    were still in flight when a failed Orbax restore closed its event loop; pass on the rest."""
-    exc = unraisable.exc_value
-    if isinstance(exc, RuntimeError) and str(exc) == "Event loop is closed":
-        return
-    _previous_unraisablehook(unraisable)
-
-
-_previous_unraisablehook = sys.unraisablehook
-
-
 def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=None):
     step = manager.latest_step() if step is None else step
     abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(template))
+    restore_noise.expect_failed_reads(manager.directory)
     try:
         flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
         leaves = [np.asarray(flat[k]) for k in sorted(flat)]
@@ -86,9 +74,6 @@ def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=N
             raise ValueError(f"{len(leaves)} arrays, the run's state has another number")
         state = jax.tree.unflatten(jax.tree.structure(template), leaves)
     except Exception as e:  # a corrupt or truncated checkpoint can fail anywhere inside Orbax
-        global _previous_unraisablehook
-        if sys.unraisablehook is not _quiet_closed_loop:
-            _previous_unraisablehook, sys.unraisablehook = sys.unraisablehook, _quiet_closed_loop
         text = cli.message(e).split(" [tensorstore_spec=")[0]
         text = text if len(text) <= 300 else text[:297] + "..."
         where = Path(manager.directory) / str(step)
