@@ -116,3 +116,61 @@ def test_stiffness_from_compliance():
     stiff_z = np.diag([1e-3, 1e-3, 0.0, 0.05, 0.05, 0.05])  # z infinitely stiff: no finite K_c
     with pytest.raises(ValueError, match="singular"):
         P.stiffness_from_compliance(stiff_z)
+
+
+# The centred map (issue 18): action 0 is the baseline, sensitive in both directions there.
+
+
+def _centre():
+    from mjx_peg.skill.baseline import baseline_params
+
+    return P.check_centre(baseline_params())
+
+
+@pytest.mark.parametrize("value", [1e6, -1e6, 1e300, -1e300])
+def test_centred_map_is_valid_for_any_action(value):
+    _assert_valid(P.controller_from_centred_action(np.full(38, value), _centre()))
+    rng = np.random.default_rng(3)
+    _assert_valid(P.controller_from_centred_action(rng.normal(scale=5, size=(500, 38)), _centre()))
+
+
+def test_centred_map_is_the_centre_at_zero_and_round_trips():
+    centre = _centre()
+    at_zero = P.vector_from_controller(P.controller_from_centred_action(np.zeros(38), centre))
+    np.testing.assert_allclose(at_zero, centre, rtol=1e-12, atol=1e-18)
+    action = np.random.default_rng(4).uniform(-2, 2, size=(200, 38))
+    p = P.controller_from_centred_action(action, centre)
+    back = P.centred_action_from_controller(p, centre)
+    again = P.controller_from_centred_action(back, centre)
+    np.testing.assert_allclose(P.vector_from_controller(again), P.vector_from_controller(p),
+                               rtol=1e-9, atol=1e-15)  # fmt: skip
+
+
+def test_exploration_moves_the_baseline_under_the_centred_map_not_the_sigmoid_one():
+    """The baseline's k_t = 900 of [10, 1000] and C_xx = 1.8e-3 of 2e-3: an action step of -0.4
+    (the exploration std) moves them 37 % and 11 % down under the centred map, 4 % under the
+    sigmoid map from the baseline's action there (the trap PPO sat in)."""
+    from mjx_peg.learn.config import TrainConfig
+    from mjx_peg.learn.ppo import prior_action
+
+    step = np.zeros(38)
+    step[[0, 2]] = -0.4
+    centred = P.vector_from_controller(P.controller_from_centred_action(step, _centre()))
+    prior = prior_action(TrainConfig(action_map="sigmoid")).astype(np.float64)
+    sigmoid_0 = P.vector_from_controller(P.controller_from_action(prior))
+    sigmoid = P.vector_from_controller(P.controller_from_action(prior + step))
+    centre = _centre()
+    u0 = np.log(90) / np.log(100)  # u = u0 + u0 tanh(s a / u0), s = 1/4, a = -0.4
+    assert centred[0] == pytest.approx(10 * 100 ** (u0 + u0 * np.tanh(-0.1 / u0)), rel=1e-9)
+    assert centred[2] == pytest.approx(2e-3 * (0.9 + 0.9 * np.tanh(-0.1 / 0.9)), rel=1e-9)
+    assert centred[0] / centre[0] < 0.65 and centred[2] / centre[2] < 0.9
+    assert sigmoid[0] / sigmoid_0[0] > 0.95 and sigmoid[2] / sigmoid_0[2] > 0.95
+
+
+def test_a_centre_on_an_edge_is_refused():
+    centre = _centre()
+    for i, value in ((0, 1000.0), (2, 0.0), (2 + 4, 0.5 * np.sqrt(2e-3 * 0.1))):
+        bad = centre.copy()
+        bad[i] = value
+        with pytest.raises(ValueError, match=P.PARAM_NAMES[i].replace("[", r"\[")):
+            P.check_centre(bad)

@@ -208,6 +208,41 @@ def test_policy_numbers_are_the_evaluations(tmp_path):
     np.testing.assert_array_equal(baseline, baseline_params())
 
 
+def test_the_manifest_says_how_actions_become_numbers(tmp_path):
+    """A centred-map policy decodes around its recorded centre; a manifest written before the
+    centred map (no "map") decodes with the sigmoid map, as it was trained; an unknown map or a
+    centre on a range's edge is one PolicyError."""
+    import json
+
+    from mjx_peg.policy.export import PolicyError
+    from mjx_peg.skill.params import controller_from_action, vector_from_controller
+
+    rng = np.random.default_rng(1)
+    layers = [(rng.normal(size=(8, 16)), rng.normal(size=16)), (np.zeros((16, 38)), np.zeros(38))]
+    specs = _specs(n=3)
+    save_policy(tmp_path / "c", layers, np.zeros(8), np.ones(8), {}, centre=baseline_params())
+    vectors = load_policy(tmp_path / "c").controller_vectors(specs)
+    np.testing.assert_allclose(vectors, np.broadcast_to(baseline_params(), (3, 38)), rtol=1e-6)
+    save_policy(tmp_path / "s", layers, np.zeros(8), np.ones(8), {})
+    manifest_path = tmp_path / "s" / "manifest.json"
+    manifest = json.loads(manifest_path.read_text())
+    assert manifest["action"]["ranges"].pop("map") == "sigmoid"
+    manifest_path.write_text(json.dumps(manifest))
+    sigmoid_zero = vector_from_controller(controller_from_action(np.zeros(38)))
+    np.testing.assert_array_equal(
+        load_policy(tmp_path / "s").controller_vectors(specs),
+        np.broadcast_to(sigmoid_zero, (3, 38)),
+    )
+    good = (tmp_path / "c" / "manifest.json").read_text()
+    for change, message in ((("map", "linear"), "unknown action map"),
+                            (("centre", [1000.0] * 38), "not strictly inside")):  # fmt: skip
+        bad = json.loads(good)
+        bad["action"]["ranges"][change[0]] = change[1]
+        (tmp_path / "c" / "manifest.json").write_text(json.dumps(bad))
+        with pytest.raises(PolicyError, match=message):
+            load_policy(tmp_path / "c")
+
+
 def test_runtime_inserted_uses_the_estimated_hole():
     hole = HoleEstimate(0.4, 0.1, 0.0, "circle", 0.05)
     runtime = SkillRuntime(baseline_params(), hole, SHORT)

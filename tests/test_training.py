@@ -52,7 +52,8 @@ def tiny_run(tmp_path_factory):
 
 def test_env_reset_and_step_are_one_trial():
     config = TrainConfig(time_limit_s=1.0)
-    env = VmapWrapper(InsertionEnv(config.task(), config.trial()))
+    centre = config.map_centre()
+    env = VmapWrapper(InsertionEnv(config.task(), config.trial(), action_centre=centre))
     state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
     specs = specs_from_seeds(config.task(), np.asarray(state.info["seed"]))
     np.testing.assert_allclose(state.obs["state"], observation.observe_specs(specs), atol=1e-6)
@@ -63,7 +64,7 @@ def test_env_reset_and_step_are_one_trial():
     action = jnp.zeros((4, 38))
     after = jax.jit(env.step)(state, action)
     expected = run_trials(
-        specs, np.asarray(controller_vector(np.zeros((4, 38)))), "mujoco", config.trial()
+        specs, np.asarray(controller_vector(np.zeros((4, 38)), centre)), "mujoco", config.trial()
     )
     np.testing.assert_array_equal(after.done, 1.0)
     np.testing.assert_allclose(after.metrics["return"], expected.reward, rtol=1e-6)
@@ -115,12 +116,14 @@ def test_prior_starts_at_the_baseline():
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.skill.baseline import baseline_params
 
-    state = init_state(config, make_networks(config))
     obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
-    vec = np.asarray(controller_vector(deterministic_actions(config, state, obs)))
     base = baseline_params()
-    np.testing.assert_allclose(vec[:, :2], np.broadcast_to(base[:2], (64, 2)), rtol=0.3)
-    assert np.all(vec[:, 2] > 0.8e-3)  # lateral compliance near the baseline's 1e-3 m/N
+    for cfg in (config, config.replace(action_map="sigmoid")):
+        state = init_state(cfg, make_networks(cfg))
+        vec = controller_vector(deterministic_actions(cfg, state, obs), cfg.map_centre())
+        vec = np.asarray(vec)
+        np.testing.assert_allclose(vec[:, :2], np.broadcast_to(base[:2], (64, 2)), rtol=0.3)
+        assert np.all(vec[:, 2] > 1.2e-3)  # lateral compliance near the baseline's 1.8e-3 m/N
 
 
 @pytest.mark.slow

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from mjx_peg import cli
 from mjx_peg.engines import ENGINES
+from mjx_peg.learn.config import ACTION_MAPS
 
 PROG = "train.py"
 
@@ -63,6 +64,12 @@ def parser() -> argparse.ArgumentParser:
         "--processes 0 (default: all cores)",
     )
     cli.add_processes_option(p, "--workers")
+    p.add_argument(
+        "--action-map",
+        choices=ACTION_MAPS,
+        help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
+        "baseline; sigmoid: the map of runs before issue 18; --init-from takes its run's map)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -76,6 +83,7 @@ def parser() -> argparse.ArgumentParser:
 def resolve_config(args):
     """The preset with the command line's overrides applied (ValueError on bad values)."""
     from mjx_peg.learn.config import PRESETS
+    from mjx_peg.learn.run_dir import RunDir
     from mjx_peg.policy.export import load_policy
 
     overrides = {
@@ -86,13 +94,20 @@ def resolve_config(args):
         "time_limit_s": args.time_limit,
         "init_from": None if args.init_from is None else str(args.init_from),
         "full_time_limit": args.full_time_limit or None,
+        "action_map": args.action_map,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:
         raise ValueError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
-        config = config.replace(init_from=os.path.abspath(config.init_from))
+        source = RunDir(config.init_from).read_config().action_map
+        if args.action_map not in (None, source):
+            raise ValueError(
+                f"--action-map {args.action_map}: {config.init_from} was trained with the {source}"
+                " map, and its networks mean that map's actions"
+            )
+        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source)
     return config
 
 

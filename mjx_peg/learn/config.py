@@ -19,9 +19,15 @@ import math
 
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
+# How the policy's unbounded action becomes the 38 numbers (skill/params.py): "centred" puts
+# action 0 at the baseline with the sensitivity of a range's middle in both directions;
+# "sigmoid" (every run before issue 18's fix) centres each number's range instead, and the
+# baseline's k_t, k_theta and translational compliance sit on its flat edge there.
+ACTION_MAPS = ("centred", "sigmoid")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,6 +57,7 @@ class TrainConfig:
     init_noise_std: float = 0.4  # exploration std of the gains and compliance diagonal (action)
     init_noise_std_coupling: float = 0.1  # of the 30 off-diagonal couplings
     prior: str = "baseline"  # "baseline": start at the hand-tuned skill; "none": Brax's init
+    action_map: str = "centred"  # ACTION_MAPS; config.json files without it were "sigmoid"
     policy_hidden: tuple[int, ...] = (64, 64)
     value_hidden: tuple[int, ...] = (64, 64)
     seed: int = 0
@@ -81,6 +88,10 @@ class TrainConfig:
             object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
         if self.prior not in PRIORS:
             raise ValueError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
+        if self.action_map not in ACTION_MAPS:
+            raise ValueError(
+                f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
+            )
         if self.engine not in ENGINES:
             raise ValueError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):
@@ -126,6 +137,10 @@ class TrainConfig:
     def trial(self) -> TrialConfig:
         return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
 
+    def map_centre(self):
+        """(38,) physical vector at action 0 of the centred map, or None for the sigmoid map."""
+        return baseline_params() if self.action_map == "centred" else None
+
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)
 
@@ -138,7 +153,7 @@ class TrainConfig:
         unknown = set(data) - names
         if unknown:
             raise ValueError(f"config.json has unknown fields {sorted(unknown)}")
-        return cls(**data)
+        return cls(**{"action_map": "sigmoid", **data})  # written before the field existed
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n"

@@ -36,7 +36,7 @@ with contextlib.redirect_stdout(io.StringIO()):
 from mjx_peg.engines import resolve_engine, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.policy import network, observation
-from mjx_peg.skill.params import N_PARAMS
+from mjx_peg.skill.params import N_PARAMS, check_centre
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 # Per trial: the outcome, how a failure ended (unstable, settled, protective stop) and the
@@ -67,11 +67,14 @@ class InsertionEnv(Env):
         trial: TrialConfig | None = None,
         engine: str = "mujoco",
         engine_options: dict | None = None,
+        action_centre=None,
     ):
         self.task = task or TaskConfig()
         self.trial = trial or TrialConfig(time_limit_s=self.task.time_limit_s)
         self.engine = resolve_engine(engine)
         self.engine_options = dict(engine_options or {})
+        # the centred map's (38,) centre, or None for the sigmoid map (network.controller_vector)
+        self.action_centre = None if action_centre is None else check_centre(action_centre)
         self._last_specs: tuple[bytes, TrialSpec] | None = None  # reset's draw, reused by step
 
     def _specs(self, seeds: np.ndarray) -> TrialSpec:
@@ -142,7 +145,7 @@ class InsertionEnv(Env):
         )
 
     def step(self, state: State, action: jax.Array) -> State:
-        vector = network.controller_vector(action)
+        vector = network.controller_vector(action, self.action_centre)
         scalar = jax.ShapeDtypeStruct((), jnp.float32)
         outcome = jax.pure_callback(
             self._run_host,

@@ -82,12 +82,12 @@ def make_optimizer(config: TrainConfig) -> optax.GradientTransformation:
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(config.learning_rate))
 
 
-def prior_action() -> np.ndarray:
-    """(38,) action of the hand-tuned baseline, its compliance pulled inside the ranges.
-
-    The baseline sits at the edge of some ranges (C[i,i] = the maximum), where the squashing
-    saturates; at PRIOR_EDGE of the bound the action is finite and exploration still moves it.
-    """
+def prior_action(config: TrainConfig) -> np.ndarray:
+    """(38,) action of the hand-tuned baseline: 0 under the centred map (its centre); under the
+    sigmoid map the baseline's action, its compliance pulled inside the ranges (at a range's edge
+    the squashing saturates; at PRIOR_EDGE of the bound the action is finite)."""
+    if config.action_map == "centred":
+        return np.zeros(N_PARAMS, np.float32)
     vector = baseline_params()
     bound = np.asarray(DEFAULT_RANGES.compliance_bound()).reshape(36)
     vector[2:] = np.clip(vector[2:], -PRIOR_EDGE * bound, PRIOR_EDGE * bound)
@@ -124,7 +124,10 @@ def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> Train
     }
     if config.prior == "baseline":
         head = policy["params"]["Dense_0"]
-        head = {"kernel": head["kernel"] * PRIOR_KERNEL_SCALE, "bias": jnp.asarray(prior_action())}
+        head = {
+            "kernel": head["kernel"] * PRIOR_KERNEL_SCALE,
+            "bias": jnp.asarray(prior_action(config)),
+        }
         policy = {"params": {**policy["params"], "Dense_0": head}}
     params = ppo_losses.PPONetworkParams(
         policy=policy,

@@ -123,6 +123,7 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
         np.asarray(norm.mean["state"]),
         np.asarray(norm.std["state"]),
         config.to_json(),
+        centre=config.map_centre(),
         extra={
             "finished": finished,
             "trials": int(state.trials),
@@ -170,7 +171,9 @@ def train(
             note(f"--force: moved the earlier run in {run.path} aside to {moved}")
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
-    env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options)
+    env = InsertionEnv(
+        config.task(), config.trial(), config.engine, engine_options, config.map_centre()
+    )
     manager = run.checkpoints()
     if plan == "resume" and manager.latest_step() is not None:
         try:

@@ -42,6 +42,7 @@ class Policy:
     obs_mean: np.ndarray
     obs_std: np.ndarray
     manifest: dict
+    centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
 
     def act(self, obs) -> np.ndarray:
         """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
@@ -53,18 +54,45 @@ class Policy:
 
     def vectors_for(self, obs) -> np.ndarray:
         """(B, 38) physical parameter vectors for (B, 8) observations (`observation.observe`)."""
-        return np.asarray(network.controller_vector(self.act(obs)), dtype=np.float64)
+        vectors = network.controller_vector(self.act(obs), self.centre)
+        return np.asarray(vectors, dtype=np.float64)
 
 
-def _ranges_json(ranges: params.ParamRanges) -> dict:
-    return {
+def _ranges_json(ranges: params.ParamRanges, centre) -> dict:
+    ranges = {
         "k_t": list(ranges.k_t),
         "k_theta": list(ranges.k_theta),
         "compliance_bound": [list(row) for row in ranges.compliance_bound()],
-        "compliance_diagonal": "C[i,i] = bound * sigmoid(a)",
-        "compliance_off_diagonal": "C[i,j] = bound * tanh(a)",
-        "stiffness": "k = exp(log lo + (log hi - log lo) * sigmoid(a))",
     }
+    if centre is None:
+        return {
+            **ranges,
+            "map": "sigmoid",
+            "compliance_diagonal": "C[i,i] = bound * sigmoid(a)",
+            "compliance_off_diagonal": "C[i,j] = bound * tanh(a)",
+            "stiffness": "k = exp(log lo + (log hi - log lo) * sigmoid(a))",
+        }
+    return {
+        **ranges,
+        "map": "centred",
+        "centre": [float(v) for v in centre],
+        "definition": "mjx_peg/skill/params.py controller_from_centred_action",
+    }
+
+
+def _map_centre(manifest: dict, where) -> np.ndarray | None:
+    """The manifest's centred-map centre, or None for the sigmoid map (manifests written before
+    the centred map have no "map" and used the sigmoid one)."""
+    ranges = manifest["action"]["ranges"]
+    kind = ranges.get("map", "sigmoid")
+    if kind == "sigmoid":
+        return None
+    if kind != "centred":
+        raise PolicyError(f"{where}: unknown action map {kind!r}")
+    try:
+        return params.check_centre(ranges["centre"])
+    except (ValueError, TypeError) as e:
+        raise PolicyError(f"{where}: {e}") from None
 
 
 def save_policy(
@@ -74,6 +102,7 @@ def save_policy(
     obs_std,
     config: dict,
     extra: dict | None = None,
+    centre=None,
 ) -> Path:
     """Write `policy.npz` + `manifest.json` into run_dir (atomically: temp files, then rename)."""
     run_dir = Path(run_dir)
@@ -101,7 +130,7 @@ def save_policy(
         "action": {
             "size": params.N_PARAMS,
             "param_names": list(params.PARAM_NAMES),
-            "ranges": _ranges_json(params.DEFAULT_RANGES),
+            "ranges": _ranges_json(params.DEFAULT_RANGES, centre),
         },
         "config": config,
         **(extra or {}),
@@ -152,6 +181,7 @@ def load_policy(path) -> Policy:
             (arrays[f"layer{i}_kernel"], arrays[f"layer{i}_bias"]) for i in range(len(shapes))
         )
         obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
+        centre = _map_centre(manifest, manifest_path)
     except (KeyError, TypeError) as e:
         raise PolicyError(
             f"{run_dir}: policy.npz and manifest.json disagree (missing {e})"
@@ -168,4 +198,4 @@ def load_policy(path) -> Policy:
     everything = [obs_mean, obs_std] + [w for layer in layers for w in layer]
     if not all(np.all(np.isfinite(a)) for a in everything) or np.any(obs_std <= 0):
         raise PolicyError(f"{npz_path} holds NaN, infinite or non-positive normalization values")
-    return Policy(layers, obs_mean, obs_std, manifest)
+    return Policy(layers, obs_mean, obs_std, manifest, centre)

@@ -14,7 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mjx_peg.skill.params import controller_from_action, vector_from_controller
+from mjx_peg.skill.params import (
+    controller_from_action,
+    controller_from_centred_action,
+    vector_from_controller,
+)
 from mjx_peg.world.rotations import namespace_of
 
 
@@ -37,6 +41,10 @@ def mean_action(layers: Sequence[tuple], obs_mean, obs_std, obs):
     return x
 
 
-def controller_vector(action):
-    """(..., 38) physical parameter vector [k_t, k_theta, C row-major] of an action."""
-    return vector_from_controller(controller_from_action(action))
+def controller_vector(action, centre=None):
+    """(..., 38) physical parameter vector [k_t, k_theta, C row-major] of an action: the
+    centred map around the physical vector `centre` (38,), or the sigmoid map if None
+    (`skill/params.py`)."""
+    if centre is None:
+        return vector_from_controller(controller_from_action(action))
+    return vector_from_controller(controller_from_centred_action(action, centre))

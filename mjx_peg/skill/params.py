@@ -156,6 +156,91 @@ def controller_from_action(action, ranges: ParamRanges = DEFAULT_RANGES) -> Cont
     )
 
 
+def _unit_weight(xp, dtype):
+    """(38,) w: the sigmoid map is u = sigmoid(w a) for every number (w = 2 on the couplings,
+    whose tanh(a) = 2 sigmoid(2 a) - 1), so its slope du/da at its middle is w / 4."""
+    return xp.asarray([1.0, 1.0] + [1.0 if i == j else 2.0 for i in range(6) for j in range(6)],
+                      dtype=dtype)  # fmt: skip
+
+
+def _to_unit(vector, ranges: ParamRanges, xp):
+    """(..., 38) position of each number in its range, 0 at the low end and 1 at the high end
+    (log-scaled for k_t, k_theta; C[i,j] = b_ij (2 u - 1) off the diagonal)."""
+    lo = xp.asarray([math.log(ranges.k_t[0]), math.log(ranges.k_theta[0])], dtype=vector.dtype)
+    hi = xp.asarray([math.log(ranges.k_t[1]), math.log(ranges.k_theta[1])], dtype=vector.dtype)
+    bound = xp.reshape(xp.asarray(ranges.compliance_bound(), dtype=vector.dtype), (36,))
+    diagonal = xp.reshape(xp.asarray(_DIAGONAL, dtype=vector.dtype), (36,)) > 0.5
+    u_k = (xp.log(vector[..., :2]) - lo) / (hi - lo)
+    v = vector[..., 2:] / bound
+    return xp.concat([u_k, xp.where(diagonal, v, 0.5 * (v + 1.0))], axis=-1)
+
+
+def _from_unit(u, ranges: ParamRanges, xp):
+    """(..., 38) physical vector of unit positions u (the inverse of `_to_unit`)."""
+    lo = xp.asarray([math.log(ranges.k_t[0]), math.log(ranges.k_theta[0])], dtype=u.dtype)
+    hi = xp.asarray([math.log(ranges.k_t[1]), math.log(ranges.k_theta[1])], dtype=u.dtype)
+    k_lo = xp.asarray([ranges.k_t[0], ranges.k_theta[0]], dtype=u.dtype)
+    k_hi = xp.asarray([ranges.k_t[1], ranges.k_theta[1]], dtype=u.dtype)
+    bound = xp.reshape(xp.asarray(ranges.compliance_bound(), dtype=u.dtype), (36,))
+    diagonal = xp.reshape(xp.asarray(_DIAGONAL, dtype=u.dtype), (36,)) > 0.5
+    k = xp.clip(xp.exp(lo + (hi - lo) * u[..., :2]), k_lo, k_hi)  # clip: rounding only
+    c = bound * xp.where(diagonal, u[..., 2:], 2.0 * u[..., 2:] - 1.0)
+    return xp.concat([k, c], axis=-1)
+
+
+def check_centre(centre, ranges: ParamRanges = DEFAULT_RANGES):
+    """The (38,) float64 NumPy centre of a centred map; ValueError unless strictly inside the
+    ranges (on an edge the map could not leave it on that side)."""
+    np = importlib.import_module("numpy")
+    centre = np.asarray(centre, dtype=np.float64)
+    if centre.shape != (N_PARAMS,) or not np.all(np.isfinite(centre)):
+        raise ValueError(f"the map's centre must be {N_PARAMS} finite numbers")
+    if np.any(centre[:2] <= 0):
+        raise ValueError("the map's centre has a stiffness <= 0")
+    u = _to_unit(centre, ranges, np)
+    if not np.all((u > 0) & (u < 1)):
+        names = [PARAM_NAMES[i] for i in np.flatnonzero(~((u > 0) & (u < 1)))]
+        raise ValueError(f"the map's centre is not strictly inside the ranges at {names}")
+    return centre
+
+
+def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT_RANGES):
+    """ControllerParams from an unbounded action (..., 38) under the centred map.
+
+    Action 0 is the physical vector `centre` (38,) (the baseline, for training), and there each
+    number moves with the slope of the sigmoid map at its middle (du/da = w / 4, u the position
+    in the range, `_unit_weight`) in both directions, approaching the range's edges like tanh:
+    u = u0 + (1 - u0) tanh(s a / (1 - u0)) for a >= 0, u0 + u0 tanh(s a / u0) for a < 0.
+    The sigmoid map puts the centre of its sensitivity in the middle of each range; a prior near
+    an edge (k = 900 of [10, 1000] sits at sigmoid 0.977) then moves ~20 times less for the same
+    exploration, and PPO started there barely moves it (issue 18).
+    """
+    xp = namespace_of(action)
+    _split_action(action, xp)
+    u0 = _to_unit(xp.asarray(centre, dtype=action.dtype), ranges, xp)
+    s = 0.25 * _unit_weight(xp, action.dtype)
+    up, down = 1.0 - u0, u0
+    u = u0 + xp.where(action >= 0, up * xp.tanh(s * action / up), down * xp.tanh(s * action / down))
+    return controller_from_vector(_from_unit(u, ranges, xp))
+
+
+def centred_action_from_controller(
+    params: ControllerParams, centre, ranges: ParamRanges = DEFAULT_RANGES
+):
+    """(..., 38) action whose `controller_from_centred_action` is `params` (values inside the
+    ranges; the edges map to a large finite action)."""
+    vector = vector_from_controller(params)
+    xp = namespace_of(vector)
+    u0 = _to_unit(xp.asarray(centre, dtype=vector.dtype), ranges, xp)
+    u = _to_unit(vector, ranges, xp)
+    s = 0.25 * _unit_weight(xp, vector.dtype)
+    up, down = 1.0 - u0, u0
+    d = u - u0
+    return xp.where(
+        d >= 0, up / s * _inverse_tanh(d / up, xp), down / s * _inverse_tanh(d / down, xp)
+    )
+
+
 def action_from_controller(params: ControllerParams, ranges: ParamRanges = DEFAULT_RANGES):
     """(..., 38) action whose `controller_from_action` is `params` (values clipped to the ranges).
 
@@ -231,6 +316,9 @@ __all__ = [
     "ControllerParams",
     "ParamRanges",
     "action_from_controller",
+    "centred_action_from_controller",
+    "check_centre",
+    "controller_from_centred_action",
     "controller_from_action",
     "controller_from_vector",
     "stiffness_from_compliance",
