@@ -2,9 +2,10 @@
 
 A run directory's policy is plain arrays (`policy.npz`, read with allow_pickle=False) and a JSON
 manifest that says what they mean: schema version, observation names and normalization, layer
-shapes, activation, the 38 parameter names and their physical ranges, and the config that made
-it. `load_policy` checks all of it and raises `PolicyError` (one line) on anything missing,
-truncated or inconsistent. No JAX is imported here: the real robot runs this.
+shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
+action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
+without a map used), and the config that made it. `load_policy` checks all of it and raises
+`PolicyError` (one line) on anything missing, truncated or inconsistent. No JAX is imported here: the real robot runs this.
 
     policy = load_policy("runs/quick")
     vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
@@ -84,6 +85,8 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
     """The manifest's centred-map centre, or None for the sigmoid map (manifests written before
     the centred map have no "map" and used the sigmoid one)."""
     ranges = manifest["action"]["ranges"]
+    if not isinstance(ranges, dict):
+        raise PolicyError(f"{where}: action.ranges is not an object")
     kind = ranges.get("map", "sigmoid")
     if kind == "sigmoid":
         return None
