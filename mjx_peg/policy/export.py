@@ -5,7 +5,8 @@ manifest that says what they mean: schema version, observation names and normali
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
 without a map used), and the config that made it. `load_policy` checks all of it and raises
-`PolicyError` (one line) on anything missing, truncated or inconsistent. No JAX is imported here: the real robot runs this.
+`PolicyError` (one line) on anything missing, truncated or inconsistent. No JAX is imported
+here: the real robot runs this.
 
     policy = load_policy("runs/quick")
     vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
