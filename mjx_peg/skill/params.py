@@ -226,7 +226,7 @@ def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT
     exploration, and PPO started there barely moves it (issue 18).
     """
     xp = namespace_of(action)
-    _split_action(action, xp)
+    _split_action(action, xp)  # checks the last axis (38)
     u0 = _to_unit(xp.asarray(centre, dtype=action.dtype), ranges, xp)
     s = 0.25 * _unit_weight(xp, action.dtype)
     up, down = 1.0 - u0, u0
