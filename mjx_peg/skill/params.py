@@ -173,13 +173,19 @@ def _unit_weight(xp, dtype):
                       dtype=dtype)  # fmt: skip
 
 
+def _unit_scales(ranges: ParamRanges, xp, dtype):
+    """log k low and high ends (2,), compliance bound (36,) and diagonal mask (36,)."""
+    lo = xp.asarray([math.log(ranges.k_t[0]), math.log(ranges.k_theta[0])], dtype=dtype)
+    hi = xp.asarray([math.log(ranges.k_t[1]), math.log(ranges.k_theta[1])], dtype=dtype)
+    bound = xp.reshape(xp.asarray(ranges.compliance_bound(), dtype=dtype), (36,))
+    diagonal = xp.reshape(xp.asarray(_DIAGONAL, dtype=dtype), (36,)) > 0.5
+    return lo, hi, bound, diagonal
+
+
 def _to_unit(vector, ranges: ParamRanges, xp):
     """(..., 38) position of each number in its range, 0 at the low end and 1 at the high end
     (log-scaled for k_t, k_theta; C[i,j] = b_ij (2 u - 1) off the diagonal)."""
-    lo = xp.asarray([math.log(ranges.k_t[0]), math.log(ranges.k_theta[0])], dtype=vector.dtype)
-    hi = xp.asarray([math.log(ranges.k_t[1]), math.log(ranges.k_theta[1])], dtype=vector.dtype)
-    bound = xp.reshape(xp.asarray(ranges.compliance_bound(), dtype=vector.dtype), (36,))
-    diagonal = xp.reshape(xp.asarray(_DIAGONAL, dtype=vector.dtype), (36,)) > 0.5
+    lo, hi, bound, diagonal = _unit_scales(ranges, xp, vector.dtype)
     u_k = (xp.log(vector[..., :2]) - lo) / (hi - lo)
     v = vector[..., 2:] / bound
     return xp.concat([u_k, xp.where(diagonal, v, 0.5 * (v + 1.0))], axis=-1)
@@ -187,15 +193,17 @@ def _to_unit(vector, ranges: ParamRanges, xp):
 
 def _from_unit(u, ranges: ParamRanges, xp):
     """(..., 38) physical vector of unit positions u (the inverse of `_to_unit`)."""
-    lo = xp.asarray([math.log(ranges.k_t[0]), math.log(ranges.k_theta[0])], dtype=u.dtype)
-    hi = xp.asarray([math.log(ranges.k_t[1]), math.log(ranges.k_theta[1])], dtype=u.dtype)
+    lo, hi, bound, diagonal = _unit_scales(ranges, xp, u.dtype)
     k_lo = xp.asarray([ranges.k_t[0], ranges.k_theta[0]], dtype=u.dtype)
     k_hi = xp.asarray([ranges.k_t[1], ranges.k_theta[1]], dtype=u.dtype)
-    bound = xp.reshape(xp.asarray(ranges.compliance_bound(), dtype=u.dtype), (36,))
-    diagonal = xp.reshape(xp.asarray(_DIAGONAL, dtype=u.dtype), (36,)) > 0.5
     k = xp.clip(xp.exp(lo + (hi - lo) * u[..., :2]), k_lo, k_hi)  # clip: rounding only
     c = bound * xp.where(diagonal, u[..., 2:], 2.0 * u[..., 2:] - 1.0)
     return xp.concat([k, c], axis=-1)
+
+
+def _centred_frame(centre, ranges: ParamRanges, xp, dtype):
+    """The centre's unit position u0 (38,) and the map's slope s at it (38,)."""
+    return _to_unit(xp.asarray(centre, dtype=dtype), ranges, xp), 0.25 * _unit_weight(xp, dtype)
 
 
 def check_centre(centre, ranges: ParamRanges = DEFAULT_RANGES):
@@ -227,8 +235,7 @@ def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT
     """
     xp = namespace_of(action)
     _split_action(action, xp)  # checks the last axis (38)
-    u0 = _to_unit(xp.asarray(centre, dtype=action.dtype), ranges, xp)
-    s = 0.25 * _unit_weight(xp, action.dtype)
+    u0, s = _centred_frame(centre, ranges, xp, action.dtype)
     up, down = 1.0 - u0, u0
     u = u0 + xp.where(action >= 0, up * xp.tanh(s * action / up), down * xp.tanh(s * action / down))
     return controller_from_vector(_from_unit(u, ranges, xp))
@@ -241,9 +248,8 @@ def centred_action_from_controller(
     ranges; the edges map to a large finite action)."""
     vector = vector_from_controller(params)
     xp = namespace_of(vector)
-    u0 = _to_unit(xp.asarray(centre, dtype=vector.dtype), ranges, xp)
+    u0, s = _centred_frame(centre, ranges, xp, vector.dtype)
     u = _to_unit(vector, ranges, xp)
-    s = 0.25 * _unit_weight(xp, vector.dtype)
     up, down = 1.0 - u0, u0
     d = u - u0
     return xp.where(
