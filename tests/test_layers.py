@@ -32,7 +32,12 @@ PEER_IMPORTS: set[tuple[str, str]] = {
 
 # Modules the robot's computer runs: importable with neither JAX nor MuJoCo installed.
 ROBOT_SIDE = ("skill", "policy", "robot")
-NEEDS_MUJOCO = {"mjx_peg.robot.sim_arm", "mjx_peg.robot.cli", "mjx_peg.robot.__main__"}
+NEEDS_MUJOCO = {
+    "mjx_peg.robot.sim_arm",
+    "mjx_peg.robot.sim_ur5e",
+    "mjx_peg.robot.cli",
+    "mjx_peg.robot.__main__",
+}
 BLOCKED = ("jax", "jaxlib", "mujoco", "flax", "brax", "optax", "orbax")
 
 

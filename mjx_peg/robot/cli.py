@@ -1,7 +1,9 @@
-"""Run a policy through the robot runtime on the simulated arm, at the robot's command rate.
+"""Run a policy through the robot runtime on the simulated arm, or on a real UR5e.
 
     python -m mjx_peg.robot --policy runs/paper --trials 20 --command-hz 500
+    python -m mjx_peg.robot --robot-ip 192.168.1.10 --hole 450,-120,30 --shape circle --shadow
 
+Simulated (the default):
 Each trial samples a board, errors and a start like the evaluation (`task.sample_trials`), builds
 a `SimArm`, and runs `run_skill` with the numbers the policy gives for the estimated hole. The
 command rate must divide the 500 Hz physics (500, 250, 166.7, 125, 100, ... Hz); torques are held
@@ -67,7 +69,48 @@ def _parser() -> argparse.ArgumentParser:
         f"({RESULTS}.replaced-DATE-TIME)",
     )
     p.add_argument("--no-progress", action="store_true")
+    arm = p.add_argument_group(
+        "a real UR5e (one insertion at --hole; robot/ur5e_cli.py, needs the robot extra: "
+        'pip install -e ".[robot]")'
+    )
+    arm.add_argument("--robot-ip", help="the UR5e's address (IP or host name): run on the arm")
+    arm.add_argument("--hole", metavar="X,Y,YAW", help="estimated hole centre (mm) and yaw (deg)")
+    arm.add_argument(
+        "--shadow", action="store_true", help="read the arm, compute and log torques, send nothing"
+    )
+    arm.add_argument(
+        "--dry-run", action="store_true", help="no connection: print the plan and the free motion"
+    )
+    arm.add_argument(
+        "--rehearse",
+        action="store_true",
+        help="the same path against a simulated UR5e behind ur_rtde's interface (no hardware)",
+    )
+    arm.add_argument(
+        "--friction-comp",
+        action="store_true",
+        help="let the controller add its joint friction compensation to the torques",
+    )
+    arm.add_argument(
+        "--model",
+        choices=("mujoco", "controller"),
+        default="mujoco",
+        help="where H and h come from: the training scene (default) or the UR controller",
+    )
     return p
+
+
+def _check_host(text: str) -> None:
+    """ValueError unless `text` is an IPv4/IPv6 address or a host name."""
+    import ipaddress
+    import re
+
+    try:
+        ipaddress.ip_address(text)
+    except ValueError:
+        host = r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,62})(\.[A-Za-z0-9-]{1,63})*"
+        if not re.fullmatch(host, text):
+            raise ValueError(f"--robot-ip: not an IP address or host name: {text!r}") from None
 
 
 def command_steps(hz: float) -> int:
@@ -105,6 +148,21 @@ def _has_rows(path: Path) -> bool:
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    real = args.robot_ip is not None or args.dry_run or args.rehearse
+    if real or args.shadow or args.hole:
+        if args.robot_ip is not None:
+            _check_host(args.robot_ip)
+        if not real:
+            raise ValueError("--hole and --shadow need --robot-ip, --rehearse or --dry-run")
+        if args.hole is None:
+            raise ValueError("--robot-ip, --rehearse and --dry-run need --hole X,Y,YAW")
+        if args.robot_ip and args.rehearse:
+            raise ValueError("--rehearse runs on the simulated UR5e: drop --robot-ip")
+        if args.dry_run and (args.shadow or args.rehearse):
+            raise ValueError("--dry-run connects to nothing: drop --shadow and --rehearse")
+        from mjx_peg.robot import ur5e_cli
+
+        return ur5e_cli.run(args, PROG)
     task, steps = _setup(args)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
     # The output location, before any trial: never the policy, no earlier result replaced

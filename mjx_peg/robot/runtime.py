@@ -254,8 +254,9 @@ def run_skill(
     log = {"t": [], "tcp_pos": [], "wrench": [], "torque": []}
     stopped, success = "", False
     runtime.period_steps = max(1, round(arm.period / runtime.config.timestep))
-    state = arm.read()
+    state = None
     try:
+        state = arm.read()
         runtime.start(state)
         while True:
             elapsed = runtime.elapsed(state)
@@ -278,4 +279,5 @@ def run_skill(
         arm.hold()
         stopped = str(stop)
     arrays = {k: np.asarray(v, dtype=np.float64) for k, v in log.items()}
-    return SkillRun(success, runtime.elapsed(state), stopped, arrays, runtime.peak_force)
+    elapsed = 0.0 if state is None else runtime.elapsed(state)  # None: the first read stopped
+    return SkillRun(success, elapsed, stopped, arrays, runtime.peak_force)

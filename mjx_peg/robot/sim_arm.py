@@ -115,6 +115,12 @@ class SimArm:
         """Hold the start's gravity-compensation torques (the sim's protective stop)."""
         self.data.ctrl[self.ids.actuator_ids] = self.hold_torque
 
+    @property
+    def rest_reading(self) -> np.ndarray:
+        """(6,) the F/T reading at rest at the set-up (force, torque; sensor frame, the load on
+        the peg), before the sensor's noise and bias: the zero a real sensor is tared to."""
+        return self._rest[0].copy()
+
     def chatter(self) -> float:
         """N: the engines' chatter (TrialResult.chatter) of the true axial contact force, over
         the readings so far (one per command period)."""
