@@ -176,6 +176,29 @@ def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> No
     )
 
 
+def add_ray_option(parser: argparse.ArgumentParser) -> None:
+    """--ray [ADDRESS]: the CPU engine's trials on a Ray cluster (train.py, eval.py)."""
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        metavar="ADDRESS",
+        help="CPU engine: run the trials on a Ray cluster, one lane per CPU, the same results "
+        "(auto: the cluster `ray start` runs on this node; HOST:PORT: another; no address: a "
+        'local one on this machine); needs the cluster extra: pip install -e ".[cluster]"',
+    )
+
+
+def ray_options(args: argparse.Namespace, engine: str, lane_flags: tuple[str, ...]) -> dict:
+    """The engine options of --ray (`{"ray": ADDRESS}`), after refusing what it replaces."""
+    if engine != "mujoco":
+        raise ValueError(f"--ray runs the mujoco engine's trials, not {engine}'s")
+    for flag in ("--processes", *lane_flags):
+        if getattr(args, flag.lstrip("-").replace("-", "_"), None):
+            raise ValueError(f"--ray runs one lane per cluster CPU: drop {flag}")
+    return {"ray": args.ray}
+
+
 def resolve_processes(value: int | None, engine: str) -> int | None:
     """--processes as the engine option `processes`: None where the lanes stay in this process.
 

@@ -735,6 +735,7 @@ def run_trials(
     batch_threads: int | None = None,
     persistent: bool | None = None,
     processes: int | None = None,
+    ray: str | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -751,11 +752,26 @@ def run_trials(
     wrenches (for demos and benchmarks); it needs threads=1, its default then.
     processes: run the trials in that many worker processes (`engines/processes.py`: one GIL
     each) of `threads` lanes each (default 1); None (the default): lanes in this process.
+    ray: run them on the Ray cluster at this address, one lane per CPU (`engines/ray_pool.py`:
+    "auto", "local" or HOST:PORT); the same results.
     """
     n = len(specs)
     if workers is not None and threads is not None and workers != threads:
         raise ValueError(f"threads ({threads}) and workers ({workers}) name the same option")
     threads = threads if threads is not None else workers
+    if ray is not None:
+        if processes is not None or observer is not None or threads not in (None, 1):
+            raise ValueError("ray runs one lane per cluster CPU: it takes no processes, "
+                             "threads or observer")  # fmt: skip
+        for name, value in (("slots_per_thread", slots_per_thread),
+                            ("batch_threads", batch_threads)):  # fmt: skip
+            _count(name, value, 1)
+        from mjx_peg.engines import ray_pool
+
+        return ray_pool.run_trials(
+            specs, params, config, ray, progress=progress, slots_per_thread=slots_per_thread,
+            batch_threads=batch_threads, persistent=persistent,
+        )  # fmt: skip
     if processes is not None:
         processes = _count("processes", processes, 1)
         if observer is not None:

@@ -109,8 +109,27 @@ def _without_main_script():
             setattr(main, key, value)
 
 
-def _take_params(params: ControllerParams, rows: np.ndarray) -> ControllerParams:
+def take_params(params: ControllerParams, rows: np.ndarray) -> ControllerParams:
+    """The parameters of the trials at `rows`."""
     return ControllerParams(*(np.asarray(a)[rows] for a in params))
+
+
+def interleaved(n: int, shards: int) -> list[np.ndarray]:
+    """Row indices of `shards` interleaved shards of n trials (trial k in shard k mod shards)."""
+    size = min(shards, n)
+    return [np.arange(k, n, size) for k in range(size)]
+
+
+def merge(n: int, shards: list[np.ndarray], parts: list[TrialResult]) -> TrialResult:
+    """The shards' results back in spec order."""
+    out = {}
+    for field in dataclasses.fields(TrialResult):
+        first = getattr(parts[0], field.name)
+        merged = np.empty((n, *first.shape[1:]), dtype=first.dtype)
+        for rows, part in zip(shards, parts, strict=True):
+            merged[rows] = getattr(part, field.name)
+        out[field.name] = merged
+    return TrialResult(**out)
 
 
 def run_trials(
@@ -125,16 +144,15 @@ def run_trials(
     """Every trial of `specs` on `processes` worker processes of `threads` lanes each (default
     1); `options`: the in-process engine's slots_per_thread, batch_threads, persistent."""
     n = len(specs)
-    size = min(processes, n)
-    shards = [np.arange(k, n, size) for k in range(size)]
-    executor, progress_queue = _executor(size)
+    shards = interleaved(n, processes)
+    executor, progress_queue = _executor(len(shards))
     try:
         with _without_main_script():  # the executor starts its workers on submit
             futures = [
                 executor.submit(
                     _run_shard,
                     specs.take(rows),
-                    _take_params(params, rows),
+                    take_params(params, rows),
                     config,
                     threads or 1,
                     options,
@@ -157,14 +175,7 @@ def run_trials(
     except BaseException:  # Ctrl-C or an error in a worker: stop the others at once
         shutdown(kill=True)
         raise
-    out = {}
-    for field in dataclasses.fields(TrialResult):
-        first = getattr(parts[0], field.name)
-        merged = np.empty((n, *first.shape[1:]), dtype=first.dtype)
-        for rows, part in zip(shards, parts, strict=True):
-            merged[rows] = getattr(part, field.name)
-        out[field.name] = merged
-    return TrialResult(**out)
+    return merge(n, shards, parts)
 
 
 def _drain(progress_queue, progress) -> None:

@@ -639,6 +639,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
     cli.add_processes_option(p, "--threads")
+    cli.add_ray_option(p)
     p.add_argument(
         "--chunk-trials",
         type=cli.TRIALS,
@@ -721,10 +722,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy = str(args.policy)
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
-    options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
-    processes = cli.resolve_processes(args.processes, config.engine)
-    if processes is not None:
-        options["processes"] = processes
+    if args.ray is not None:
+        options = cli.ray_options(args, resolve_engine(config.engine), ("--threads", "--workers"))
+    else:
+        options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+        processes = cli.resolve_processes(args.processes, config.engine)
+        if processes is not None:
+            options["processes"] = processes
     check_engine_options(config.engine, options)
     other = None if args.compare is None else load_evaluation_grid(args.compare)
     paper_name = args.paper
@@ -733,6 +737,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif paper_name == "none":
         paper_name = None
     cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
+    if args.ray is not None:  # join the cluster before anything is written
+        from mjx_peg.engines import ray_pool
+
+        ray_pool.connect(args.ray)
     prepare_out_dir(
         out,
         config,

@@ -64,6 +64,7 @@ def parser() -> argparse.ArgumentParser:
         "--processes 0 (default: all cores)",
     )
     cli.add_processes_option(p, "--workers")
+    cli.add_ray_option(p)
     p.add_argument(
         "--action-map",
         choices=ACTION_MAPS,
@@ -138,7 +139,15 @@ def main(argv=None) -> int:
     config = resolve_config(args)
     from mjx_peg.engines import resolve_engine
 
-    processes = cli.resolve_processes(args.processes, resolve_engine(config.engine))
+    engine = resolve_engine(config.engine)
+    if args.ray is not None:
+        options = cli.ray_options(args, engine, ("--workers",))
+    else:
+        options = {
+            "workers": args.workers,
+            "processes": cli.resolve_processes(args.processes, engine),
+        }
+        options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
         cli.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
@@ -148,8 +157,10 @@ def main(argv=None) -> int:
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(out)  # written only on a warning, once the run directory exists
-    options = {"workers": args.workers, "processes": processes}
-    options = {k: v for k, v in options.items() if v is not None}
+    if args.ray is not None:  # join the cluster before the run directory is written
+        from mjx_peg.engines import ray_pool
+
+        ray_pool.connect(args.ray)
     summary = train(
         config,
         out,
