@@ -759,13 +759,14 @@ def run_trials(
     if workers is not None and threads is not None and workers != threads:
         raise ValueError(f"threads ({threads}) and workers ({workers}) name the same option")
     threads = threads if threads is not None else workers
+    if ray is not None or processes is not None:  # lanes elsewhere: bad values are one error
+        for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
+                            ("batch_threads", batch_threads)):  # fmt: skip
+            _count(name, value, 1)  # here, before any worker starts
     if ray is not None:
         if processes is not None or observer is not None or threads not in (None, 1):
             raise ValueError("ray runs one lane per cluster CPU: it takes no processes, "
                              "threads or observer")  # fmt: skip
-        for name, value in (("slots_per_thread", slots_per_thread),
-                            ("batch_threads", batch_threads)):  # fmt: skip
-            _count(name, value, 1)
         from mjx_peg.engines import ray_pool
 
         return ray_pool.run_trials(
@@ -776,9 +777,6 @@ def run_trials(
         processes = _count("processes", processes, 1)
         if observer is not None:
             raise ValueError("an observer runs in the lane's thread: it needs processes=None")
-        for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
-                            ("batch_threads", batch_threads)):  # fmt: skip
-            _count(name, value, 1)  # bad values: one error here, before any process starts
         from mjx_peg.engines import processes as worker_processes
 
         return worker_processes.run_trials(

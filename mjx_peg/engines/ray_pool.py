@@ -17,6 +17,7 @@ read from disk. Ray is imported only here, and only when asked for (`pip install
 from __future__ import annotations
 
 import importlib
+import sys
 import warnings
 from collections.abc import Callable
 
@@ -29,7 +30,7 @@ INSTALL = 'pip install -e ".[cluster]"'
 RETRIES = 3  # a lost actor's call is retried this many times (on its restarted actor)
 # The trials of one call go out in 1 to PIECES_PER_ACTOR pieces per actor, as many as keep
 # MIN_PIECE_TRIALS trials each: a piece ends with its slowest trial in a draining batch,
-# so small pieces cost (a training iteration of 256 trials in 8 pieces on 2 actors took 27 %
+# so small pieces cost (a training iteration of 256 trials in 8 pieces on 2 actors took 23 %
 # longer than in 2, BENCHMARKS.md "Ray cluster").
 PIECES_PER_ACTOR = 4
 MIN_PIECE_TRIALS = 512
@@ -111,15 +112,9 @@ def _reachable(address: str, timeout_s: float = 5.0) -> None:
 def shutdown() -> None:
     """Drop the actors and leave the cluster (a local one stops)."""
     _actors.clear()
-    ray = importlib.import_module("ray") if _ray_loaded() else None
+    ray = sys.modules.get("ray")  # never imported: nothing to leave
     if ray is not None and ray.is_initialized():
         ray.shutdown()
-
-
-def _ray_loaded() -> bool:
-    import sys
-
-    return "ray" in sys.modules
 
 
 def run_trials(

@@ -723,7 +723,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
     if args.ray is not None:
-        options = cli.ray_options(args, resolve_engine(config.engine), ("--threads", "--workers"))
+        options = cli.ray_options(args, config.engine, ("--threads", "--workers"))
     else:
         options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
         processes = cli.resolve_processes(args.processes, config.engine)

@@ -184,7 +184,6 @@ class UR5eArm:
         self._work_start = None  # clock() when the open period's reading began
         self._last_read = None
         self._t0 = None
-        self._gravity = np.zeros(6)
         self.log: dict[str, list] = {k: [] for k in ("t", "period_s", "work_s", "q", "ur_wrench",
                                                       "torque", "sent")}  # fmt: skip
 
@@ -251,7 +250,6 @@ class UR5eArm:
             if isinstance(error, SafetyStop):
                 raise
             raise UR5eStop("connection_lost", f"connection to the UR5e lost: {error}") from None
-        self._gravity = self.model.gravity(state.q)
         self.log["t"].append(state.t)
         self.log["q"].append(state.q)
         self.log["ur_wrench"].append(wrench)
@@ -259,12 +257,12 @@ class UR5eArm:
         return state
 
     def send(self, torque: np.ndarray) -> None:
-        command = np.asarray(torque, dtype=np.float64) - self._gravity
         self.log["torque"].append(np.asarray(torque, dtype=np.float64).copy())
         self.log["work_s"].append(self.clock() - self._work_start)
         self.log["sent"].append(not self.shadow)
         if self.shadow:
             return
+        command = np.asarray(torque, dtype=np.float64) - self.model.gravity(self._last_read.q)
         args = [] if self.friction_comp else [[0.0] * 6, [0.0] * 6]
         try:
             ok = self.control.directTorque([float(v) for v in command], *args)

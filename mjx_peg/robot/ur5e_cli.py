@@ -134,8 +134,7 @@ def rehearsal_robot(hole: HoleEstimate, q_start, seed: int):
             sensor_delay_offset=[0],
         )
     ).validate()
-    sim = SimArm(spec, 0)
-    return SimulatedUR5e(sim), sim
+    return SimulatedUR5e(SimArm(spec, 0))
 
 
 def write_log(path: Path, arm: UR5eArm, run: SkillRun, runtime: SkillRuntime) -> int:
@@ -262,7 +261,7 @@ def run(args, prog: str) -> int:
         cli.refuse_or_move(paths, args.force, prog)
     cli.prepare_dir(args.out)
     if args.rehearse:
-        robot, sim = rehearsal_robot(hole, p["q_start"], args.seed)
+        robot = rehearsal_robot(hole, p["q_start"], args.seed)
         interfaces, clock, where = (
             (robot.control, robot.receive, robot.dashboard),
             robot.clock,
