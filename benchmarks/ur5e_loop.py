@@ -132,7 +132,7 @@ def main() -> None:
             row("work (reading to command)", r["work"]),
             row("adapter `read`", r["read"]),
             row("of it, the simulated robot's physics", r["physics"]),
-            row("runtime compute (`SkillRuntime`)", r["compute"]),
+            row("runtime compute (`SkillRuntime`) and g(q)", r["compute"]),
             "",
         ]
     text = "\n".join(lines)

@@ -257,12 +257,14 @@ class UR5eArm:
         return state
 
     def send(self, torque: np.ndarray) -> None:
-        self.log["torque"].append(np.asarray(torque, dtype=np.float64).copy())
+        torque = np.asarray(torque, dtype=np.float64)
+        # The controller adds g(q) itself; the work of a period ends with the command ready.
+        command = None if self.shadow else torque - self.model.gravity(self._last_read.q)
+        self.log["torque"].append(torque.copy())
         self.log["work_s"].append(self.clock() - self._work_start)
         self.log["sent"].append(not self.shadow)
         if self.shadow:
             return
-        command = np.asarray(torque, dtype=np.float64) - self.model.gravity(self._last_read.q)
         args = [] if self.friction_comp else [[0.0] * 6, [0.0] * 6]
         try:
             ok = self.control.directTorque([float(v) for v in command], *args)
