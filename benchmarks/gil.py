@@ -52,8 +52,8 @@ def capture(trials: int, rows: int) -> dict:
 
 
 def numpy_pass(c: dict) -> np.ndarray:
-    """The engine's own pass of one control period (`_Lane._torques`), without the physics."""
-    return c["lane"]._torques(c["m"], None)
+    """The engine's own pass of one control period (`Lane.advance`), without the physics."""
+    return c["lane"].advance(c["m"])[1]
 
 
 def rate(lanes: list[dict], seconds: float) -> float:

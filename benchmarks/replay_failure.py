@@ -23,7 +23,7 @@ import numpy as np
 
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.evaluation import demo
+from mjx_peg.evaluation import demo, eval_cli
 from mjx_peg.evaluation import grid as evaluation
 from mjx_peg.skill import dmp, sensor
 
@@ -46,10 +46,10 @@ def main() -> None:
     p.add_argument("--old-policy", required=True, help="the policy trained before issue 18")
     p.add_argument("--out", type=pathlib.Path, required=True, help="the figure (PNG)")
     args = p.parse_args()
-    nominal = evaluation.build_parser().parse_args(
+    nominal = eval_cli.build_parser().parse_args(
         ["--policy", "baseline", "--grid", "paper", "--out", "unused"]
     )
-    config = evaluation.config_from_args(nominal, "baseline")
+    config = eval_cli.config_from_args(nominal, "baseline")
     specs = evaluation.range_specs(config, RANGE)
     lin, ang = config.ranges[RANGE]
     _, old_controller = evaluation.load_controller(args.old_policy)
@@ -67,7 +67,7 @@ def main() -> None:
     _, baseline = evaluation.load_controller("baseline")
     result = run_trials(one, baseline(one), engine="mujoco", config=now)
     print(f"under the current trial, baseline: {result.summary()}")
-    demo._plot(run, args.out)
+    demo.plot_trial(run, args.out)
     print(f"wrote {args.out}")
 
 

@@ -28,10 +28,12 @@ import mujoco.batch
 import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
+from mjx_peg.cores import cores
+from mjx_peg.engines import lanes, period, sims
 from mjx_peg.engines import mujoco as cpu_engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.world import constants, scene
+from mjx_peg.world import scene
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -70,15 +72,11 @@ def record_states(specs, params, config, every):
     return snaps
 
 
-def _scene_key(specs, index):
-    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
-
-
 def _replay_part(specs, snaps, every, barrier):
     """Steps/s of bare mj_step from each snapshot for `every` steps (run in a worker process)."""
     envs, jobs = {}, []
     for index, state in snaps:
-        key = _scene_key(specs, index)
+        key = sims.scene_key(specs, index)
         if key not in envs:
             m = scene.load_model(*key)
             envs[key] = (m, mujoco.MjData(m))
@@ -112,25 +110,25 @@ def replay_batch(specs, snaps, every, nthread, nsim=512):
     one step per call (as the engine steps), torques held; steps/s of the step calls."""
     by_scene = collections.defaultdict(list)
     for index, state in snaps:
-        by_scene[_scene_key(specs, index)].append((index, state))
+        by_scene[sims.scene_key(specs, index)].append((index, state))
     steps, seconds = 0, 0.0
     for key, jobs in by_scene.items():
-        sims = cpu_engine._Sims(key, min(nsim, len(jobs)), nthread)
-        m = sims.trial_model
-        for start in range(0, len(jobs), sims.nsim):
-            chunk = jobs[start : start + sims.nsim]
+        batch = sims.Sims(key, min(nsim, len(jobs)), nthread)
+        m = batch.trial_model
+        for start in range(0, len(jobs), batch.nsim):
+            chunk = jobs[start : start + batch.nsim]
             for sim, (index, state) in enumerate(chunk):
                 scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
                 scene.set_grasp(m, *specs.grasp_error[index])
                 scene.set_friction(m, specs.friction[index])
-                for name, values in sims.fields.items():
+                for name, values in batch.fields.items():
                     values[sim] = getattr(m, name)
-                sims.state[sim] = state
+                batch.state[sim] = state
             ids = np.arange(len(chunk), dtype=np.int32)
-            sims.forward(ids)
+            batch.forward(ids)
             begin = time.perf_counter()
             for _ in range(every):
-                sims.batch.step(ids, stage=cpu_engine.STAGE_VEL)
+                batch.batch.step(ids, stage=sims.STAGE_VEL)
             seconds += time.perf_counter() - begin
             steps += len(chunk) * every
     return steps / seconds
@@ -177,9 +175,10 @@ _PARTS = {
     "loads": "loading trials: `start_trial`, `Batch.forward`, skill constants",
     "measure": "gathering the bound fields of the live rows",
     "jacobians": "Jacobian and its derivative from cdof, cdof_dot (NumPy)",
-    "ended": "end checks and results",
-    "wrench": "the wrench: F/T pipeline, damping, contact metrics (`_Lane._sense`)",
-    "settle": "settle test (`settle_observe`, `settle_close`)",
+    "ended": "end tests and results (`period.ends`, `period.result`)",
+    "wrench": "the wrench: F/T pipeline, damping, contact metrics (`period.advance` less the "
+    "two below)",
+    "settle": "settle test (`settle_update`)",
     "controller": "`skill_torque`, the batched controller",
 }
 
@@ -187,19 +186,17 @@ _PARTS = {
 def profile_parts(specs, params, config):
     """µs per env-step by part of one lane in this process."""
     timers = _Timers()
-    lane = cpu_engine._Lane
     parts = [
         (mujoco.batch.Batch, "step", "step"),
-        (lane, "_load", "loads"),
-        (cpu_engine._Sims, "forward", "loads"),
-        (lane, "_measure", "measure"),
-        (cpu_engine, "jacobians", "jacobians"),
-        (lane, "_ended", "ended"),
-        (lane, "_finish", "ended"),
-        (lane, "_sense", "wrench"),
-        (cpu_engine, "settle_observe", "settle"),
-        (cpu_engine, "settle_close", "settle"),
-        (cpu_engine, "skill_torque", "controller"),
+        (sims.Sims, "load", "loads"),
+        (sims.Sims, "forward", "loads"),
+        (sims.Sims, "measure", "measure"),
+        (lanes, "jacobians", "jacobians"),
+        (period, "ends", "ended"),
+        (period, "result", "ended"),
+        (period, "advance", "advance"),
+        (period, "settle_update", "settle"),
+        (period, "skill_torque", "controller"),
     ]
     for owner, attr, name in parts:
         timers.patch(owner, attr, name)
@@ -210,6 +207,8 @@ def profile_parts(specs, params, config):
     finally:
         timers.restore()
     steps = int(result.steps.sum())
+    timers.total["wrench"] = timers.net("advance") - timers.net("settle") - timers.net("controller")
+    timers.calls["wrench"] = 0
     shares = {text: timers.net(name) for name, text in _PARTS.items()}
     shares["the rest: torque writes, Jd qd, peak force, row bookkeeping"] = wall - sum(
         shares.values()
@@ -253,7 +252,7 @@ def _row(*cells):
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=1000)
-    p.add_argument("--threads", type=int, default=cpu_engine.available_cores())
+    p.add_argument("--threads", type=int, default=cores())
     p.add_argument("--replay-every", type=int, default=50)
     p.add_argument("--time-limit", type=float, default=10.0, help="simulated s per trial")
     p.add_argument("--mjx-trials", type=int, default=8, help="0 skips the mjx engine")
@@ -286,7 +285,7 @@ def main() -> None:
         )
         steps = int(result.steps.sum())
         rate, cpu_step = steps / wall, cpu / steps
-        slots = min(cpu_engine.SLOTS_PER_THREAD, -(-len(specs) // threads))
+        slots = min(lanes.SLOTS_PER_THREAD, -(-len(specs) // threads))
         ratio = (
             f"**{100 * rate / ceiling:.0f} %** of ceiling; CPU {1e6 * cpu_step:.2f} µs/step, "
             f"{100 * ceiling_cpu / cpu_step:.0f} % of the ceiling's"

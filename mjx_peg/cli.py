@@ -17,6 +17,7 @@ Imports nothing of the package, so a CLI can parse its arguments before importin
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import math
 import os
@@ -27,10 +28,13 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from mjx_peg.cores import cores
+from mjx_peg.errors import UsageError
+
 EXIT_USAGE = 2  # bad input, as argparse
 EXIT_INTERRUPTED = 130  # Ctrl-C (128 + SIGINT)
 # What a user can cause (a bad value, an unreadable or unwritable path): one line, never a trace.
-USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError)
+USER_ERRORS: tuple[type[BaseException], ...] = (UsageError, OSError)
 _SHOWN = 60  # characters of a bad value quoted in a message
 
 
@@ -144,14 +148,6 @@ def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[
     return parse
 
 
-def cores() -> int:
-    """Cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 # The ranges of the flags several CLIs share.
 SIZE_MM = number(10.0, 100.0, "mm")  # characteristic size S (the paper: 25, 50, 60 mm)
 LINEAR_MM = number(0.0, 50.0, "mm")  # +- localization x, y and grasp z error range
@@ -192,10 +188,10 @@ def add_ray_option(parser: argparse.ArgumentParser) -> None:
 def ray_options(args: argparse.Namespace, engine: str, lane_flags: tuple[str, ...]) -> dict:
     """The engine options of --ray (`{"ray": ADDRESS}`), after refusing what it replaces."""
     if engine != "mujoco":
-        raise ValueError(f"--ray runs the mujoco engine's trials, not {engine}'s")
+        raise UsageError(f"--ray runs the mujoco engine's trials, not {engine}'s")
     for flag in ("--processes", *lane_flags):
         if getattr(args, flag.lstrip("-").replace("-", "_"), None):
-            raise ValueError(f"--ray runs one lane per cluster CPU: drop {flag}")
+            raise UsageError(f"--ray runs one lane per cluster CPU: drop {flag}")
     return {"ray": args.ray}
 
 
@@ -208,7 +204,7 @@ def resolve_processes(value: int | None, engine: str) -> int | None:
     """
     if engine != "mujoco":
         if value:
-            raise ValueError(f"--processes is an option of the mujoco engine, not of {engine}")
+            raise UsageError(f"--processes is an option of the mujoco engine, not of {engine}")
         return None
     if value is None:
         value = cores() if cores() > 1 else 0
@@ -229,7 +225,12 @@ def nonempty_path(text: str) -> Path:
         raise argparse.ArgumentTypeError("must be a path, got an empty string")
     if "\0" in text:
         raise argparse.ArgumentTypeError("must be a path without NUL characters")
-    return Path(text)
+    path = Path(text)
+    try:
+        path.resolve()  # Python 3.11 raises RuntimeError on a symlink loop, 3.13 OSError
+    except (RuntimeError, OSError):
+        raise argparse.ArgumentTypeError(f"{text!r} is a symbolic link loop") from None
+    return path
 
 
 def _inside(path: Path, other: Path) -> bool:
@@ -245,7 +246,7 @@ def check_apart(out, sources: dict[str, object | None], out_flag: str = "--out")
         theirs = Path(source).resolve()
         if _inside(mine, theirs) or _inside(theirs, mine):
             how = "is" if mine == theirs else "overlaps"
-            raise ValueError(
+            raise UsageError(
                 f"{out_flag} {out} {how} the {flag} {source}: an output never replaces an input; "
                 f"choose another {out_flag}"
             )
@@ -261,7 +262,7 @@ def move_aside(path) -> Path:
         if not target.exists() and not target.is_symlink():
             os.rename(path, target)
             return target
-    raise ValueError(f"cannot move {path} aside: too many earlier copies beside it")
+    raise UsageError(f"cannot move {path} aside: too many earlier copies beside it")
 
 
 def prepare_dir(path) -> Path:
@@ -269,14 +270,53 @@ def prepare_dir(path) -> Path:
     ValueError (one line) if not."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise ValueError(f"{path} exists and is not a directory")
+        raise UsageError(f"{path} exists and is not a directory")
     path.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryFile(dir=path):
             pass
     except OSError as e:
-        raise ValueError(f"cannot write in {path} ({e.strerror or e})") from None
+        raise UsageError(f"cannot write in {path} ({e.strerror or e})") from None
     return path
+
+
+def check_out(out, flag: str = "--out") -> None:
+    """UsageError naming `flag` if `out`, or a folder above it, exists and is not a directory."""
+    out = Path(out)
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                where = "" if folder == out else f": {folder} is a file"
+                raise UsageError(f"{flag} {out} is not a directory{where}")
+            return
+
+
+@contextlib.contextmanager
+def exclusive(out, flag: str = "--out"):
+    """Hold output directory `out` for this process while the block runs: a second process
+    asking for it gets one UsageError line. The lock (`.NAME.lock` beside `out`, so that --force
+    can move `out` aside) is an flock: the system drops it when its holder exits, crashed or
+    killed, so it never stays stuck."""
+    import fcntl
+
+    out = Path(out)
+    lock = out.parent / f".{out.name}.lock"
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            raise UsageError(
+                f"{flag} {out} is in use by another process (pid {holder}): wait for it to end "
+                f"or give another {flag}"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield out
+    finally:
+        os.close(fd)
 
 
 def partial_path(path) -> Path:
@@ -311,7 +351,7 @@ def refuse_or_move(paths, force: bool, prog: str, hint: str = "") -> None:
         return
     if not force:
         names = ", ".join(str(p) for p in found)
-        raise ValueError(
+        raise UsageError(
             f"{names} already exist{'s' if len(found) == 1 else ''}: choose another --out, or "
             f"pass --force to move {'it' if len(found) == 1 else 'them'} aside{hint}"
         )

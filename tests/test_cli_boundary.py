@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 
 from mjx_peg import cli as shared
-from mjx_peg.evaluation import baseline_cli, demo
+from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli
 from mjx_peg.evaluation import grid as evaluation
 from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
 from mjx_peg.robot import cli as robot_cli
-from mjx_peg.world import scene
+from mjx_peg.world import scene_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY_TRAIN = ["--trials", "1", "--num-envs", "1", "--time-limit", "0.01", "--no-progress"]
@@ -186,41 +186,41 @@ def test_eval_force_replaces_only_an_evaluation(tmp_path, capsys):
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "notes.txt").write_text("x\n")
-    assert evaluation.main([*EVAL, "--out", str(mine), "--force"]) == 2
+    assert eval_cli.main([*EVAL, "--out", str(mine), "--force"]) == 2
     _one_line(capsys, "eval.py", "is not an evaluation directory", "replaces only an evaluation")
     assert _tree(mine) == {"notes.txt": b"x\n"}
 
     out = tmp_path / "eval"
-    assert evaluation.main([*EVAL, "--out", str(out)]) == 0
+    assert eval_cli.main([*EVAL, "--out", str(out)]) == 0
     before = _tree(out)
     capsys.readouterr()
-    assert evaluation.main([*EVAL, "--seed", "5", "--out", str(out)]) == 2
+    assert eval_cli.main([*EVAL, "--seed", "5", "--out", str(out)]) == 2
     _one_line(capsys, "eval.py", "different config", "--force")
     assert _tree(out) == before
-    assert evaluation.main([*EVAL, "--seed", "5", "--out", str(out), "--force"]) == 0
+    assert eval_cli.main([*EVAL, "--seed", "5", "--out", str(out), "--force"]) == 0
     (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("eval.replaced-")]
     assert _tree(moved) == before
     # Never an input: --out is --compare's evaluation, or holds --policy's run.
     capsys.readouterr()
-    assert evaluation.main([*EVAL, "--out", str(out), "--compare", str(out), "--force"]) == 2
+    assert eval_cli.main([*EVAL, "--out", str(out), "--compare", str(out), "--force"]) == 2
     _one_line(capsys, "eval.py", "is the --compare")
     run = _fake_run(out / "run")
     argv = [*EVAL, "--out", str(out), "--force"]
     argv[argv.index("baseline")] = str(run)
-    assert evaluation.main(argv) == 2
+    assert eval_cli.main(argv) == 2
     _one_line(capsys, "eval.py", "overlaps the --policy")
 
 
 def test_eval_corrupt_range_file_is_one_line_naming_it(tmp_path, capsys, monkeypatch):
     out = tmp_path / "eval"
-    assert evaluation.main([*EVAL, "--out", str(out)]) == 0
+    assert eval_cli.main([*EVAL, "--out", str(out)]) == 0
     broken = out / "ranges" / "00001.npz"
     broken.write_bytes(broken.read_bytes()[:50])
     (out / "grid.csv").unlink()
     calls = []
     monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1))
     capsys.readouterr()
-    assert evaluation.main([*EVAL, "--out", str(out)]) == 2
+    assert eval_cli.main([*EVAL, "--out", str(out)]) == 2
     _one_line(capsys, "eval.py", str(broken), "corrupt or truncated", "delete it")
     assert not calls and not (out / "grid.csv").exists()
 
@@ -267,11 +267,11 @@ def test_train_corrupt_checkpoint_is_one_line_naming_it(tmp_path):
 
 CLIS = {
     "train.py": (train_cli.main, []),
-    "eval.py": (evaluation.main, ["--policy", "baseline"]),
-    "mjx-peg-demo": (demo.main, []),
+    "eval.py": (eval_cli.main, ["--policy", "baseline"]),
+    "mjx-peg-demo": (demo_cli.main, []),
     "mjx-peg-baseline": (baseline_cli.main, []),
     "python -m mjx_peg.robot": (robot_cli.main, []),
-    "mjx-peg-scene": (scene.main, ["--shape", "circle"]),
+    "mjx-peg-scene": (scene_cli.main, ["--shape", "circle"]),
 }
 BAD = [
     # (CLIs, argv, what the one line says)
@@ -372,8 +372,8 @@ def test_help_of_every_numeric_flag_states_its_range():
     for prog in CLIS:
         parser = {
             "train.py": train_cli.parser,
-            "eval.py": evaluation.build_parser,
-            "mjx-peg-demo": demo._parser,
+            "eval.py": eval_cli.build_parser,
+            "mjx-peg-demo": demo_cli._parser,
             "python -m mjx_peg.robot": robot_cli._parser,
         }.get(prog)
         if parser is None:
@@ -406,7 +406,7 @@ def test_a_bogus_mujoco_gl_breaks_no_command(tmp_path):
         "python -m mjx_peg.robot: error: --trials must be an integer in 1..100,000, got 0"
     ]
     args = ("--shape", "square", "--size", "50", "--out", "o", "--width", "64", "--height", "48")
-    done = _python("-m", "mjx_peg.world.scene", *args, cwd=tmp_path, MUJOCO_GL="bogus")
+    done = _python("-m", "mjx_peg.world.scene_cli", *args, cwd=tmp_path, MUJOCO_GL="bogus")
     assert done.returncode == 0, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mjx-peg-scene: warning: MUJOCO_GL='bogus'")
@@ -452,10 +452,10 @@ def test_bad_input_leaves_a_clone_clean():
     runs = [
         ("train.py", "--trials", "0"),
         ("eval.py", "--policy", "baseline", "--out", "", "--trials", "1"),
-        ("-m", "mjx_peg.evaluation.demo", "--size", "1e12"),
+        ("-m", "mjx_peg.evaluation.demo_cli", "--size", "1e12"),
         ("-m", "mjx_peg.evaluation.baseline_cli", "--seed", "-1"),
         ("-m", "mjx_peg.robot", "--command-hz", "300"),
-        ("-m", "mjx_peg.world.scene", "--shape", "circle", "--size", "50", "--out", "/proc/x"),
+        ("-m", "mjx_peg.world.scene_cli", "--shape", "circle", "--size", "50", "--out", "/proc/x"),
     ]
     for args in runs:
         done = _python(*args, cwd=ROOT, MUJOCO_GL="bogus")
@@ -473,3 +473,123 @@ def test_evaluation_config_json_is_recognised_by_its_schema(tmp_path):
     with pytest.raises(ValueError, match="is not an evaluation config"):
         evaluation.prepare_out_dir(out, config, force=True)
     assert (out / "config.json").exists()
+
+
+# -- the catalogue's last cases ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("prog", list(CLIS))
+def test_a_symlink_loop_as_out_is_one_line(prog, tmp_path, capsys):
+    if prog == "mjx-peg-baseline":
+        pytest.skip("writes no --out")
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    main, required = CLIS[prog]
+    assert main([*required, "--out", str(tmp_path / "a")]) == 2
+    _one_line(capsys, prog, "is a symbolic link loop")
+
+
+@pytest.mark.parametrize("hz", ["5e-324", "1e-12", "0.5"])
+def test_a_command_period_longer_than_the_trial_is_one_line(hz, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert robot_cli.main(["--command-hz", hz, "--time-limit", "1", "--out", str(out)]) == 2
+    _one_line(capsys, "python -m mjx_peg.robot", "longer than the --time-limit of 1 s")
+    assert not out.exists()
+
+
+def test_a_second_evaluation_of_the_same_out_is_refused_while_the_first_holds_it(tmp_path, capsys):
+    """The lock is held while its process lives, and gone with it when it is killed."""
+    out = tmp_path / "eval"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from mjx_peg import cli\n"
+         "with cli.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
+         str(out)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        argv = [
+            "--policy",
+            "baseline",
+            "--out",
+            str(out),
+            "--grid",
+            "custom",
+            "--linear-mm",
+            "1",
+            "--angular-deg",
+            "1",
+            "--trials",
+            "1",
+            "--time-limit",
+            "0.05",
+            "--no-progress",
+        ]
+        assert eval_cli.main(argv) == 2
+        _one_line(capsys, "eval.py", f"--out {out} is in use by another process (pid")
+        assert not out.exists()
+    finally:
+        holder.kill()  # as a crash: the lock must not stay behind
+        holder.wait()
+    assert eval_cli.main(argv) == 0
+    assert (out / "grid.csv").is_file()
+
+
+def test_a_bug_inside_an_engine_keeps_its_traceback(tmp_path, capsys, monkeypatch):
+    """Only UsageError and OSError become one line: an internal ValueError is a bug and
+    propagates through cli.entry; a bad flag is still one line."""
+    from mjx_peg.engines import period
+
+    def broken(*args):
+        raise ValueError("operands could not be broadcast together")
+
+    monkeypatch.setattr(period, "skill_torque", broken)
+    argv = ["--policy", "baseline", "--out", str(tmp_path / "o"), "--grid", "custom",
+            "--linear-mm", "1", "--angular-deg", "1", "--trials", "1", "--time-limit", "0.05",
+            "--no-progress", "--processes", "0"]  # fmt: skip
+    with pytest.raises(ValueError, match="could not be broadcast"):
+        eval_cli.main(argv)
+    assert eval_cli.main([*argv, "--seed", "-1"]) == 2
+    _one_line(capsys, "eval.py", "--seed must be an integer")
+
+
+def test_train_rounds_its_budget_up_to_whole_iterations_and_says_so(tmp_path, capsys):
+    argv = ["--trials", "3", "--num-envs", "2", "--time-limit", "0.01", "--no-progress"]
+    assert train_cli.main(["--out", str(tmp_path / "run"), *argv]) == 0
+    err = capsys.readouterr().err
+    assert "--trials 3 rounded up to 2 iterations of 2 trials (4 trials)" in err
+    assert "rounded up to whole iterations" in train_cli.parser().format_help().replace("\n ", "")
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_path):
+    """SIGINT in the middle of an iteration (the main thread waiting in the jitted PPO step,
+    the CPU engine in a host callback): exit 130 within 3 s, every finished iteration kept;
+    the same command then finishes with the trials.csv of an uninterrupted run."""
+    import signal
+    import time
+
+    argv = ["train.py", "--num-envs", "16", "--trials", "48", "--time-limit", "10",
+            "--checkpoint-every", "3600", "--no-progress", "--processes", "0"]  # fmt: skip
+    out = tmp_path / "run"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_")}
+    run = subprocess.Popen([sys.executable, *argv, "--out", str(out)], cwd=ROOT, env=env,
+                           stderr=subprocess.PIPE, text=True)  # fmt: skip
+    csv = out / "trials.csv"
+    deadline = time.monotonic() + 600
+    while not (csv.is_file() and len(csv.read_text().splitlines()) > 16):
+        assert run.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    time.sleep(1.0)  # into the second iteration's trials
+    sent = time.monotonic()
+    run.send_signal(signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    took = time.monotonic() - sent
+    assert took < 3.0, took
+    assert "interrupted; rerun the same command to resume" in run.stderr.read()
+    assert len(csv.read_text().splitlines()) == 17  # the first iteration, kept
+    for target in (out, tmp_path / "uninterrupted"):
+        done = subprocess.run([sys.executable, *argv, "--out", str(target)], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=900)  # fmt: skip
+        assert done.returncode == 0, done.stderr[-2000:]
+    assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjx_peg.evaluation import demo
+from mjx_peg.evaluation import demo_cli, eval_cli
 from mjx_peg.evaluation import grid as evaluation
 
 EVAL = [
@@ -18,7 +18,7 @@ EVAL = [
 @pytest.fixture(scope="module")
 def eval_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("eval")
-    assert evaluation.main([*EVAL, "--out", str(out)]) == 0
+    assert eval_cli.main([*EVAL, "--out", str(out)]) == 0
     return out
 
 
@@ -30,7 +30,7 @@ def test_replay_ends_as_the_evaluation_recorded(eval_dir, tmp_path, capsys):
         index = int(np.flatnonzero(recorded["success"] == (kind == "success"))[0])
         out = tmp_path / kind
         argv = ["--replay", str(eval_dir), "--range", "1", "--trial", kind, "--out", str(out)]
-        assert demo.main([*argv, "--frames", "2"]) == 0
+        assert demo_cli.main([*argv, "--frames", "2"]) == 0
         text = capsys.readouterr().out
         assert f"range 1 (±2 mm / ±3 deg) trial {index}:" in text
         then = f"{kind} after {recorded['time_s'][index]:.3f} s"
@@ -50,7 +50,7 @@ def test_replay_reports_a_different_outcome(eval_dir, tmp_path, capsys, monkeypa
 
     monkeypatch.setattr(evaluation, "load_range", altered)
     argv = ["--replay", str(eval_dir), "--range", "0", "--frames", "0", "--out", str(tmp_path)]
-    assert demo.main(argv) == 1
+    assert demo_cli.main(argv) == 1
     assert "(DIFFERENT)" in capsys.readouterr().out
 
 
@@ -65,9 +65,9 @@ def test_replay_reports_a_different_outcome(eval_dir, tmp_path, capsys, monkeypa
 )
 def test_bad_replay_is_one_clear_line(eval_dir, tmp_path, capsys, extra, message):
     argv = ["--replay", str(eval_dir), *extra, "--out", str(tmp_path / "o")]
-    assert demo.main(argv) == 2
+    assert demo_cli.main(argv) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith(f"{demo.PROG}: error:"), err
+    assert len(err.splitlines()) == 1 and err.startswith(f"{demo_cli.PROG}: error:"), err
     assert message in err, err
     assert not (tmp_path / "o").exists()
 
@@ -83,7 +83,7 @@ def test_bad_replay_is_one_clear_line(eval_dir, tmp_path, capsys, extra, message
 )
 def test_bad_input_is_one_clear_line(tmp_path, capsys, argv, message):
     argv = [str(tmp_path / "nope") if a == "NO_DIR" else a for a in argv]
-    assert demo.main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert demo_cli.main([*argv, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err, err
 
@@ -98,9 +98,9 @@ def test_demo_with_a_policy_directory(tmp_path, capsys):
         tmp_path / "run", layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8), config={}
     )
     argv = ["--policy", str(tmp_path / "run"), "--time-limit", "0.2", "--frames", "0"]
-    assert demo.main([*argv, "--out", str(tmp_path / "o")]) == 0
+    assert demo_cli.main([*argv, "--out", str(tmp_path / "o")]) == 0
     assert capsys.readouterr().out.startswith("square 50 mm, ±3 mm / ±4 deg: ")
-    args = demo._parser().parse_args(argv)
-    specs, vector, config, _ = demo.trial_from_args(args)
+    args = demo_cli._parser().parse_args(argv)
+    specs, vector, config, _ = demo_cli.trial_from_args(args)
     assert config.time_limit_s == 0.2
     np.testing.assert_array_equal(vector, load_policy(tmp_path / "run").controller_vectors(specs))

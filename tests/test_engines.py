@@ -181,7 +181,7 @@ def _mixed_specs(n, seed):
 def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
     """One lane or two, few slots or many, 1 or 2 C threads per batch: bit-identical results,
     progress for every trial (slots recycled across scenes), the batches reused across calls."""
-    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.engines import sims
 
     specs = _mixed_specs(12, seed=6)
     params = np.tile(baseline_params(), (12, 1))
@@ -196,9 +196,9 @@ def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
     assert sum(counts) == 12
     assert local.unstable[5] and 0 < local.success.sum() < 12, local.summary()
     local = run_trials(specs, params, engine="mujoco", config=config, threads=1)
-    cached = {id(s) for free in cpu_engine._FREE_SIMS.values() for s in free}
+    cached = {id(s) for s in sims.pooled()}
     again = run_trials(specs, params, engine="mujoco", config=config, threads=1)
-    assert {id(s) for free in cpu_engine._FREE_SIMS.values() for s in free} == cached
+    assert {id(s) for s in sims.pooled()} == cached
     threaded = run_trials(specs, params, engine="mujoco", config=config, threads=1, batch_threads=2)
     one_data = run_trials(specs, params, engine="mujoco", config=config, persistent=False)
     data_each = run_trials(specs, params, engine="mujoco", config=config, persistent=True)
@@ -213,12 +213,12 @@ def test_batch_step_is_mj_step2_then_mj_step1(persistent):
     C MuJoCo's start_trial, mj_step1, then (ctrl, mj_step2, mj_step1) per step, to the bit."""
     import mujoco
 
-    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.engines.sims import Sims
     from mjx_peg.world import scene
 
     specs, n = _mixed_specs(40, seed=9), 4
     specs = specs.take(np.flatnonzero(specs.shape_id == 1)[:n])  # squares
-    sims = cpu_engine._Sims(("square", float(specs.size[0])), n, nthread=2, persistent=persistent)
+    sims = Sims(("square", float(specs.size[0])), n, nthread=2, persistent=persistent)
     models = [scene.load_model("square", float(specs.size[0])) for _ in range(n)]
     datas = [mujoco.MjData(m) for m in models]
     for i in range(n):
@@ -247,14 +247,14 @@ def test_jacobians_and_mass_match_mujoco():
     """`jacobians` is mj_jacSite and mj_jacDot, the dense mass matrix mj_fullM, to the bit."""
     import mujoco
 
-    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.engines.jacobian import dense_mass_index, jacobians
     from mjx_peg.world import scene
 
     m = scene.load_model("circle", 0.05)
     ids = scene.scene_ids(m)
     d = mujoco.MjData(m)
     rng = np.random.default_rng(1)
-    index = cpu_engine._dense_mass_index(m)
+    index = dense_mass_index(m)
     for _ in range(20):
         d.qpos[:] = rng.uniform(-np.pi, np.pi, 6)
         d.qvel[:] = rng.normal(size=6)
@@ -263,7 +263,7 @@ def test_jacobians_and_mass_match_mujoco():
         mujoco.mj_jacSite(m, d, jl, ja, ids.tcp_site)
         mujoco.mj_jacDot(m, d, dl, da, d.site_xpos[ids.tcp_site], ids.wrist3_body)
         root = m.body_rootid[ids.wrist3_body]
-        jac, jac_dot = cpu_engine.jacobians(
+        jac, jac_dot = jacobians(
             d.cdof[None], d.cdof_dot[None], d.cvel[ids.wrist3_body][None],
             d.subtree_com[root][None], d.site_xpos[ids.tcp_site][None],
         )  # fmt: skip
@@ -276,11 +276,11 @@ def test_jacobians_and_mass_match_mujoco():
 
 def test_an_error_in_a_lane_is_one_clear_error(monkeypatch):
     """A lane that fails stops the call with its exception in the caller; the next call runs."""
-    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.engines import period
 
     specs = _mixed_specs(8, seed=7)
     config = TrialConfig(time_limit_s=0.5)
-    calls, original = [0], cpu_engine.skill_torque
+    calls, original = [0], period.skill_torque
 
     def failing(*args):
         calls[0] += 1
@@ -288,10 +288,10 @@ def test_an_error_in_a_lane_is_one_clear_error(monkeypatch):
             raise RuntimeError("controller failed")
         return original(*args)
 
-    monkeypatch.setattr(cpu_engine, "skill_torque", failing)
+    monkeypatch.setattr(period, "skill_torque", failing)
     with pytest.raises(RuntimeError, match="controller failed"):
         run_trials(specs, baseline_params(), engine="mujoco", config=config, threads=2)
-    monkeypatch.setattr(cpu_engine, "skill_torque", original)
+    monkeypatch.setattr(period, "skill_torque", original)
     result = run_trials(specs, baseline_params(), engine="mujoco", config=config, threads=2)
     assert len(result) == 8 and result.steps.min() > 0
 
@@ -302,7 +302,7 @@ def test_engine_never_imports_jax():
     import sys
 
     code = (
-        "import sys; import mjx_peg.engines.mujoco; "
+        "import sys; import mjx_peg.engines.mujoco, mjx_peg.engines.lanes; "
         "sys.exit(any(m == 'jax' or m.startswith('jax.') for m in sys.modules))"
     )
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
@@ -430,12 +430,12 @@ def test_start_trial_edits_only_the_fields_the_engine_expands():
     no other model field."""
     import mujoco
 
-    from mjx_peg.engines import mujoco as cpu_engine
+    from mjx_peg.engines import sims
     from mjx_peg.world import scene
 
     specs = _mixed_specs(6, seed=10)
     for i in range(len(specs)):
-        key = cpu_engine._scene_key(specs, i)
+        key = sims.scene_key(specs, i)
         before, m = scene.load_model(*key), scene.load_model(*key)
         scene.start_trial(m, mujoco.MjData(m), scene.scene_ids(m), specs.board_pos[i],
                           specs.board_yaw[i], specs.grasp_error[i], specs.friction[i],
@@ -445,7 +445,7 @@ def test_start_trial_edits_only_the_fields_the_engine_expands():
             if isinstance(getattr(m, name, None), np.ndarray)
             and not np.array_equal(getattr(m, name), getattr(before, name))
         }  # fmt: skip
-        assert changed <= set(cpu_engine.TRIAL_MODEL_FIELDS), changed
+        assert changed <= set(sims.TRIAL_MODEL_FIELDS), changed
 
 
 def test_worker_processes_give_the_in_process_results():

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mjx_peg.evaluation import eval_cli
 from mjx_peg.evaluation import grid as evaluation
 from mjx_peg.evaluation import stats as es
 from mjx_peg.evaluation.plots import (
@@ -276,7 +277,7 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
     from mjx_peg.engines import processes
 
     full, resumed = tmp_path / "full", tmp_path / "resumed"
-    assert evaluation.main([*TINY, "--out", str(full)]) == 0
+    assert eval_cli.main([*TINY, "--out", str(full)]) == 0
     assert processes._pool is None  # its worker processes (one per core) stopped with it
     for name in ("grid.csv", "summary.md", "success_heatmap.png", "time_heatmap.png"):
         assert (full / name).stat().st_size > 0, name
@@ -294,31 +295,31 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
         return real(specs, *args, **kwargs)
 
     monkeypatch.setattr(evaluation, "run_trials", interrupted)
-    assert evaluation.main([*TINY, "--out", str(resumed)]) == 130
+    assert eval_cli.main([*TINY, "--out", str(resumed)]) == 130
     assert "2 of 4 ranges saved" in capsys.readouterr().err
     assert not (resumed / "grid.csv").exists()
     assert len(list((resumed / "ranges").glob("*.npz"))) == 2
 
     calls.clear()
     monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1) or real(*a, **k))
-    assert evaluation.main([*TINY, "--out", str(resumed)]) == 0
+    assert eval_cli.main([*TINY, "--out", str(resumed)]) == 0
     assert len(calls) == 2  # only the two unfinished ranges ran
     assert (resumed / "grid.csv").read_bytes() == (full / "grid.csv").read_bytes()
     # All four ranges in one engine call: the same results (chunking changes nothing).
     one_call = tmp_path / "one_call"
-    assert evaluation.main([*TINY, "--chunk-trials", "1000", "--out", str(one_call)]) == 0
+    assert eval_cli.main([*TINY, "--chunk-trials", "1000", "--out", str(one_call)]) == 0
     assert (one_call / "grid.csv").read_bytes() == (full / "grid.csv").read_bytes()
 
     # A finished evaluation reruns nothing; --compare tests it against another.
     calls.clear()
     argv = [*TINY, "--out", str(resumed), "--compare", str(full), "--alternative", "greater"]
-    assert evaluation.main(argv) == 0 and not calls
+    assert eval_cli.main(argv) == 0 and not calls
     summary = (resumed / "summary.md").read_text()
     assert f"## Against {full}" in summary and "after-vs-before" in summary
 
     # Resuming with another config is refused with one line.
     capsys.readouterr()
-    assert evaluation.main([*TINY[:-1], "--no-progress", "--seed", "8", "--out", str(full)]) == 2
+    assert eval_cli.main([*TINY[:-1], "--no-progress", "--seed", "8", "--out", str(full)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("eval.py: error:") and "seed: 7 there, 8 now" in err
     assert len(err.splitlines()) == 1
@@ -340,7 +341,7 @@ def test_learned_policy_directory(tmp_path):
         "--trials", "2", "--time-limit", "0.5", "--shape", "square", "--engine", "mujoco",
         "--no-progress", "--out", str(out),
     ]  # fmt: skip
-    assert evaluation.main(argv) == 0
+    assert eval_cli.main(argv) == 0
     import json
 
     config = json.loads((out / "config.json").read_text())
@@ -372,7 +373,7 @@ def test_bad_input_is_one_clear_line(tmp_path, capsys, change, message):
             argv[argv.index(key) + 1] = value
         else:
             argv += [key, value]
-    assert evaluation.main(argv) == 2
+    assert eval_cli.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert err.startswith("eval.py: error:") and message in err, err
@@ -403,16 +404,16 @@ def test_evaluations_from_before_early_ending_read_as_full_time_limit(tmp_path, 
     import json
 
     out = tmp_path / "old"
-    assert evaluation.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
+    assert eval_cli.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
     assert "every failure ran to the time limit" in (out / "summary.md").read_text()
     doc = json.loads((out / "config.json").read_text())
     del doc["config"]["full_time_limit"]
     (out / "config.json").write_text(json.dumps(doc))
     config, _ = evaluation.read_eval_dir(out)
     assert config.full_time_limit and not config.trial_config().end_settled
-    assert evaluation.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
+    assert eval_cli.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
     capsys.readouterr()
-    assert evaluation.main([*TINY, "--out", str(out)]) == 2
+    assert eval_cli.main([*TINY, "--out", str(out)]) == 2
     assert "full_time_limit: True there, False now" in capsys.readouterr().err
 
 
@@ -422,10 +423,10 @@ def test_evaluations_from_before_credible_contact_are_read_but_not_resumed(tmp_p
     no contact values, but it is neither resumed nor replayed."""
     import json
 
-    from mjx_peg.evaluation import demo
+    from mjx_peg.evaluation import demo_cli
 
     out = tmp_path / "old"
-    assert evaluation.main([*TINY, "--out", str(out)]) == 0
+    assert eval_cli.main([*TINY, "--out", str(out)]) == 0
     grid = (out / "grid.csv").read_text().splitlines()
     assert grid[0].endswith("settled,protective_stops,peak_force_median_n,chatter_under_5n_pct")
     assert "nan" not in grid[1].split(",")[-3]  # the peak force of the current trial
@@ -442,8 +443,8 @@ def test_evaluations_from_before_credible_contact_are_read_but_not_resumed(tmp_p
     assert evaluation.grid_table(out, config).peak_force_median_n is not None
     assert np.isnan(evaluation.grid_table(out, config).protective_stops).all()
     capsys.readouterr()
-    assert evaluation.main([*TINY, "--out", str(out)]) == 2
+    assert eval_cli.main([*TINY, "--out", str(out)]) == 2
     assert "contact_model: 1 there, 2 now" in capsys.readouterr().err
     argv = ["--replay", str(out), "--range", "0", "--trial", "0", "--out", str(tmp_path / "d")]
-    assert demo.main(argv) == 2
+    assert demo_cli.main(argv) == 2
     assert "before credible contact" in capsys.readouterr().err

@@ -11,20 +11,23 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "mjx_peg"
 
-# Rank of each layer: a module may import its own layer and lower ranks only. `cli` is the shared
-# command-line boundary (it imports nothing of the package). The last rank's folders are peers
-# that each consume the layers above; they may not import each other, except through the
-# optional imports listed in PEER_IMPORTS.
+# Rank of each layer: a module may import its own layer and lower ranks only. Rank 0 are the
+# helpers every layer shares; `cli` is the shared command-line boundary (it imports them only).
+# The last rank's folders are peers that each consume the layers above; they may not import each
+# other, except through the optional imports listed in PEER_IMPORTS.
 RANKS = {
-    "cli": 0,
-    "world": 1,
-    "skill": 2,
-    "engines": 3,
-    "policy": 4,
-    "learn": 5,
-    "evaluation": 6,
-    "robot": 6,
-    "vision": 6,
+    "errors": 0,  # UsageError
+    "cores": 0,
+    "_xp": 0,  # the array namespace
+    "cli": 1,
+    "world": 2,
+    "skill": 3,
+    "engines": 4,
+    "policy": 5,
+    "learn": 6,
+    "evaluation": 7,
+    "robot": 7,
+    "vision": 7,
 }
 PEER_IMPORTS: set[tuple[str, str]] = {
     ("vision", "robot"),  # the localizer returns robot.runtime.HoleEstimate
@@ -68,11 +71,36 @@ def _imports(module: str) -> set[str]:
         if isinstance(node, ast.Import):
             found |= {a.name for a in node.names if a.name.startswith("mjx_peg")}
         elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("mjx_peg"):
-            if node.module == "mjx_peg":  # from mjx_peg import world, cli
-                found |= {f"mjx_peg.{a.name}" for a in node.names}
-            else:
-                found.add(node.module)
+            for alias in node.names:  # from mjx_peg.engines import lanes: the module lanes
+                name = f"{node.module}.{alias.name}"
+                if (PACKAGE.parent / f"{name.replace('.', '/')}.py").exists() or (
+                    PACKAGE.parent / name.replace(".", "/") / "__init__.py"
+                ).exists():
+                    found.add(name)
+                elif node.module != "mjx_peg":
+                    found.add(node.module)
     return found
+
+
+def import_cycles(modules=None, imports=_imports) -> list[list[str]]:
+    """Every cycle of the import graph (imports inside functions count), each as its modules."""
+    modules = modules or _modules()
+    graph = {m: sorted(t for t in imports(m) if t in modules) for m in modules}
+    cycles, state = [], dict.fromkeys(modules, 0)  # 0 new, 1 on the path, 2 done
+
+    def visit(module, path):
+        state[module] = 1
+        for target in graph[module]:
+            if state[target] == 1:
+                cycles.append(path[path.index(target) :] + [target])
+            elif state[target] == 0:
+                visit(target, [*path, target])
+        state[module] = 2
+
+    for module in modules:
+        if state[module] == 0:
+            visit(module, [module])
+    return cycles
 
 
 def layer_violations(modules=None, imports=_imports) -> list[str]:
@@ -100,6 +128,22 @@ def test_every_module_belongs_to_a_layer():
 
 def test_no_layer_imports_a_higher_one():
     assert layer_violations() == []
+
+
+def test_no_module_imports_itself_through_others():
+    assert import_cycles() == []
+
+
+def test_the_cycle_check_catches_a_circle():
+    fake = {
+        "mjx_peg.engines.mujoco": {"mjx_peg.engines.processes"},
+        "mjx_peg.engines.processes": {"mjx_peg.engines.mujoco"},
+        "mjx_peg.engines.lanes": {"mjx_peg.engines.period"},
+        "mjx_peg.engines.period": set(),
+    }
+    found = import_cycles(list(fake), imports=fake.__getitem__)
+    assert found == [["mjx_peg.engines.mujoco", "mjx_peg.engines.processes",
+                      "mjx_peg.engines.mujoco"]]  # fmt: skip
 
 
 def test_the_layer_check_catches_a_wrong_import():

@@ -19,7 +19,7 @@ ray = pytest.importorskip("ray", reason="the cluster extra is part of the test e
 
 from mjx_peg.engines import ray_pool, run_trials  # noqa: E402
 from mjx_peg.engines.trial import TrialConfig  # noqa: E402
-from mjx_peg.evaluation import grid as evaluation  # noqa: E402
+from mjx_peg.evaluation import eval_cli  # noqa: E402
 from mjx_peg.learn import cli as train_cli  # noqa: E402
 from mjx_peg.skill.baseline import baseline_params  # noqa: E402
 from mjx_peg.world.task import TaskConfig, sample_trials  # noqa: E402
@@ -42,7 +42,7 @@ def cluster():
 
 def test_a_worker_killed_mid_grid_is_retried_and_the_grid_is_the_local_one(cluster, tmp_path):
     slow = [*EVAL, "--trials", "4", "--time-limit", "2"]  # later flags win
-    assert evaluation.main([*slow, "--processes", "0", "--out", str(tmp_path / "local")]) == 0
+    assert eval_cli.main([*slow, "--processes", "0", "--out", str(tmp_path / "local")]) == 0
     pids = ray.get([a.pid.remote() for a in cluster])
     killed_at = []
 
@@ -53,7 +53,7 @@ def test_a_worker_killed_mid_grid_is_retried_and_the_grid_is_the_local_one(clust
 
     killer = threading.Thread(target=kill)
     killer.start()
-    assert evaluation.main([*slow, "--ray", "--out", str(tmp_path / "ray")]) == 0
+    assert eval_cli.main([*slow, "--ray", "--out", str(tmp_path / "ray")]) == 0
     ended = time.perf_counter()
     killer.join()
     assert killed_at and killed_at[0] < ended  # the kill came while the grid ran
@@ -77,8 +77,8 @@ def test_the_engine_on_the_cluster_gives_the_local_results(cluster):
 
 
 def test_a_grid_on_the_cluster_is_byte_identical_to_the_local_one(cluster, tmp_path):
-    assert evaluation.main([*EVAL, "--processes", "0", "--out", str(tmp_path / "local")]) == 0
-    assert evaluation.main([*EVAL, "--ray", "--out", str(tmp_path / "ray")]) == 0
+    assert eval_cli.main([*EVAL, "--processes", "0", "--out", str(tmp_path / "local")]) == 0
+    assert eval_cli.main([*EVAL, "--ray", "--out", str(tmp_path / "ray")]) == 0
     for name in ("grid.csv", "summary.md"):
         local = (tmp_path / "local" / name).read_bytes()
         assert local == (tmp_path / "ray" / name).read_bytes(), name
@@ -103,7 +103,7 @@ def test_training_on_the_cluster_is_bit_identical(cluster, tmp_path):
 )
 def test_bad_cluster_input_is_one_line(extra, message, tmp_path, capsys):
     ray_pool.shutdown()  # left, so that the address is checked (the cluster tests ran above)
-    assert evaluation.main([*EVAL, *extra, "--out", str(tmp_path)]) == 2
+    assert eval_cli.main([*EVAL, *extra, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "grid.csv").exists()
@@ -112,7 +112,7 @@ def test_bad_cluster_input_is_one_line(extra, message, tmp_path, capsys):
 def test_without_ray_the_clis_work_and_ray_says_how_to_install(tmp_path):
     code = (
         "import sys\n"
-        "from mjx_peg.evaluation import grid\n"
+        "from mjx_peg.evaluation import eval_cli as grid\n"
         "argv = sys.argv[2:]\n"
         "assert grid.main([*argv, '--out', sys.argv[1] + '/plain']) == 0\n"
         "assert not [m for m in sys.modules if m.split('.')[0] == 'ray'], 'ray imported'\n"

@@ -393,7 +393,7 @@ def test_bad_input_raises_one_line_value_error(shape, size):
 def _run_cli(*args, cwd):
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     return subprocess.run(
-        [sys.executable, "-m", "mjx_peg.world.scene", *args],
+        [sys.executable, "-m", "mjx_peg.world.scene_cli", *args],
         capture_output=True,
         text=True,
         cwd=cwd,

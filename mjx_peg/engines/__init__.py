@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from mjx_peg.engines.trial import TrialConfig, TrialResult, as_controller_params
+from mjx_peg.errors import UsageError
 from mjx_peg.world.task import TrialSpec
 
 ENGINES = ("auto", "mujoco", "mjx")
@@ -19,7 +20,7 @@ ENGINES = ("auto", "mujoco", "mjx")
 def resolve_engine(engine: str) -> str:
     """'auto' -> 'mjx' if JAX has a GPU/TPU, else 'mujoco'; unknown names raise ValueError."""
     if engine not in ENGINES:
-        raise ValueError(f"unknown engine {engine!r}: choose from {', '.join(ENGINES)}")
+        raise UsageError(f"unknown engine {engine!r}: choose from {', '.join(ENGINES)}")
     if engine != "auto":
         return engine
     try:
@@ -48,10 +49,10 @@ def run_trials(
     """
     name = resolve_engine(engine)
     if not isinstance(specs, TrialSpec):
-        raise ValueError(f"specs must be a TrialSpec, got {type(specs).__name__}")
+        raise UsageError(f"specs must be a TrialSpec, got {type(specs).__name__}")
     specs.validate()
     if len(specs) == 0:
-        raise ValueError("specs holds no trials")
+        raise UsageError("specs holds no trials")
     config = config or TrialConfig()
     params = as_controller_params(params, len(specs))
     if name == "mujoco":

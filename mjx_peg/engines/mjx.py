@@ -22,46 +22,21 @@ import numpy as np
 from mujoco import mjx
 from mujoco.mjx._src.support import jac_dot  # MJX's counterpart of mj_jacDot (not re-exported)
 
+from mjx_peg.engines import period
 from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
     control_config,
-    destination,
     fitted_basis,
-    is_settled,
-    is_success,
     sensor_params,
-    settle_start,
-    settle_update,
-    trial_reward,
 )
 from mjx_peg.skill import sensor
-from mjx_peg.skill.control_step import (
-    Basis,
-    Measurement,
-    external_wrench,
-    make_skill,
-    skill_torque,
-    start_state,
-    wrench_to_goal,
-)
+from mjx_peg.skill.control_step import Basis, make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
 from mjx_peg.world.rotations import quat_from_yaw
 from mjx_peg.world.task import TrialSpec, goal_pose
 
-# outcome array -> slot field it is written from
-_OUTCOMES = {
-    "success": "success",
-    "unstable": "unstable",
-    "steps": "step",
-    "peak_force": "peak_force",
-    "tip": "tip",
-    "start_distance": "start_distance",
-    "chatter": "chatter",
-    "protective_stop": "stop",
-    "settled": "settled",
-}
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
 
@@ -141,22 +116,31 @@ class _Program:
             geom_friction=friction,
         )
 
-    def _sense(self, m, d):
+    def _measure(self, m, d) -> period.PeriodMeasurement:
+        """What the period reads of one slot, after the position and velocity stages."""
         ids = self.ids
         tcp_pos = d.site_xpos[ids.tcp_site]
-        tcp_rot = d.site_xmat[ids.tcp_site].reshape(3, 3)
         jacp, jacr = mjx.jac(m, d, tcp_pos, ids.wrist3_body)
         jdp, jdr = jac_dot(m, d, tcp_pos, ids.wrist3_body)
-        jac = jnp.concatenate([jacp.T, jacr.T], axis=0)
-        jdot_qdot = jnp.concatenate([jdp.T, jdr.T], axis=0) @ d.qvel
         force = d.sensordata[ids.ft_force_adr : ids.ft_force_adr + 3]
         torque = d.sensordata[ids.ft_torque_adr : ids.ft_torque_adr + 3]
-        rot_ft = d.site_xmat[ids.ft_site].reshape(3, 3)
-        lever = d.site_xpos[ids.ft_site] - tcp_pos
-        return tcp_pos, tcp_rot, jac, jdot_qdot, force, torque, rot_ft, lever
+        return period.PeriodMeasurement(
+            qvel=d.qvel,
+            tcp_pos=tcp_pos,
+            tcp_rot=d.site_xmat[ids.tcp_site].reshape(3, 3),
+            tip_pos=d.site_xpos[ids.tip_site],
+            ft=jnp.concatenate([force, torque]),
+            ft_rot=d.site_xmat[ids.ft_site].reshape(3, 3),
+            ft_pos=d.site_xpos[ids.ft_site],
+            jac=jnp.concatenate([jacp.T, jacr.T], axis=0),
+            jdot_qdot=jnp.concatenate([jdp.T, jdr.T], axis=0) @ d.qvel,
+            mass=mjx.full_m(m, d),
+            bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, ids.dof_adr),
+            physics_ok=jnp.ones((), bool),  # MJX does not reset: NaN fails the end tests
+        )
 
     def _init(self, inp):
-        """Data at rest at q0 under gravity compensation, the tare, and the skill constants."""
+        """Data at rest at q0 under gravity compensation, the tare, and the trial's constants."""
         cfg = self.config
         fields = {k: inp[k] for k in _MODEL_FIELDS}
         m = self._slot_model(fields)
@@ -165,109 +149,40 @@ class _Program:
         d = mjx.forward(m, d)
         d = d.replace(ctrl=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr))
         d = mjx.forward(m, d)
-        tcp_pos, tcp_rot, _, _, force, torque, _, _ = self._sense(m, d)
-        tare = jnp.concatenate([force, torque])
-        y0 = start_state(inp["goal_pos"], inp["goal_rot"], tcp_pos, tcp_rot)
+        meas = self._measure(m, d)
+        y0 = start_state(inp["goal_pos"], inp["goal_rot"], meas.tcp_pos, meas.tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
         skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
         sp = sensor.SensorParams(*(inp[f"sensor_{name}"] for name in sensor.SensorParams._fields))
-        tip = d.site_xpos[self.ids.tip_site]
-        start_distance = jnp.linalg.norm(tip - destination(inp["board_pos"]))
-        slot = dict(
-            fields=fields,
-            skill=skill,
-            tare=tare,
-            board_pos=inp["board_pos"],
-            size=inp["size"],
-            start_distance=start_distance,
-            step=jnp.zeros((), jnp.int32),
-            peak_force=jnp.zeros(()),
-            ended=jnp.zeros((), bool),
-            success=jnp.zeros((), bool),
-            unstable=jnp.zeros((), bool),
-            settled=jnp.zeros((), bool),
-            settle=settle_start((), jnp),
-            tip=tip,
-            sensor=sp,
-            sensor_state=sensor.initial_state(sp, cfg.sensor.max_delay_steps + 1, tare.dtype),
-            coupled=jnp.zeros(6, tare.dtype),
-            chatter_ring=jnp.zeros(cfg.chatter_steps, tare.dtype),
-            axial=jnp.zeros((), tare.dtype),
-            chatter=jnp.zeros((), tare.dtype),
-            stop=jnp.zeros((), bool),
-        )
-        return d, slot
+        consts = period.make_consts(skill, sp, meas.ft, inp["board_pos"], inp["size"],
+                                    meas.tip_pos)  # fmt: skip
+        state = period.start(cfg, consts)
+        end = period.Ends(*(jnp.zeros((), bool),) * 4)
+        outcome = period.result(cfg, consts, state, meas.tip_pos, end)
+        return d, dict(fields=fields, consts=consts, state=state, ended=jnp.zeros((), bool),
+                       outcome=outcome)  # fmt: skip
 
     def _step(self, d, slot):
-        """One control period of one slot; ended slots keep their outcome frozen."""
-        cfg = self.config
+        """One control period of one slot (`period.period`); ended slots keep their outcome."""
+        cfg, state = self.config, slot["state"]
         m = self._slot_model(slot["fields"])
         d = step1(m, d)
-        tcp_pos, tcp_rot, jac, jdq, force, torque, rot_ft, lever = self._sense(m, d)
-        skill = slot["skill"]
-        tip = d.site_xpos[self.ids.tip_site]
-        step = slot["step"]
-        stop = slot["stop"]  # set by the previous period's sensed force
-        success = is_success(tip, slot["board_pos"], slot["size"], cfg.success_height) & ~stop
-        finite = jnp.all(jnp.isfinite(tip)) & jnp.all(jnp.isfinite(d.qvel))
-        unstable = ~finite | jnp.any(jnp.abs(d.qvel) > cfg.max_joint_speed)
-        settled = is_settled(slot["settle"], cfg) & ~success & ~unstable & ~stop
-        ended_now = ~slot["ended"] & (success | unstable | stop | settled | (step >= cfg.max_steps))
+        meas = self._measure(m, d)
+        end, new, u, _ = period.period(cfg, self.control, self.basis, slot["consts"], state, meas)
+        ended_now = ~slot["ended"] & end.ended
         live = ~(slot["ended"] | ended_now)
-        # The F/T pipeline, the compliance damping and the contact metrics (as the C engine).
-        true = external_wrench(force, torque, slot["tare"])
-        sensed, sensor_state = sensor.step(slot["sensor"], slot["sensor_state"], true, step)
-        force_mag = jnp.linalg.norm(sensed[:3])
-        ring = slot["chatter_ring"]
-        count = jnp.clip(step - 1, 0, ring.shape[0])
-        chatter = jnp.where(count > 0, jnp.sum(ring) / jnp.maximum(count, 1), 0.0)
-        axial = skill.goal_rot[:, 2] @ (rot_ft @ true[:3])
-        ring = jnp.where(
-            live & (step >= 1),
-            ring.at[step % ring.shape[0]].set(jnp.abs(axial - slot["axial"])),
-            ring,
-        )
-        wrench = wrench_to_goal(sensed, rot_ft, lever, skill.goal_rot)
-        a = cfg.coupling_pole
-        coupled = a * slot["coupled"] + (1.0 - a) * wrench
-        meas = Measurement(
-            t=step * cfg.timestep,
-            tcp_pos=tcp_pos,
-            tcp_rot=tcp_rot,
-            jac=jac,
-            jdot_qdot=jdq,
-            qvel=d.qvel,
-            mass=mjx.full_m(m, d),
-            bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr),
-            wrench=coupled,
-        )
-        u = skill_torque(self.control, skill, self.basis, meas)
-        u = jnp.where(jnp.isfinite(u) & live, u, 0.0)
-        d_qvel = d.qvel  # this period's, for the settle test
-        d = step2(m, d.replace(ctrl=u))
+        outcome = period.result(cfg, slot["consts"], state, meas.tip_pos, end)
+        d = step2(m, d.replace(ctrl=jnp.where(live, u, 0.0)))
 
-        def keep(new, old):  # carried state advances only while the trial runs
-            return jax.tree.map(lambda a, b: jnp.where(live, a, b), new, old)
+        def pick(mask, a, b):
+            return jax.tree.map(lambda x, y: jnp.where(mask, x, y), a, b)
 
-        slot = dict(
+        return d, dict(
             slot,
-            step=jnp.where(live, step + 1, step),
-            peak_force=jnp.maximum(slot["peak_force"], jnp.where(live, force_mag, 0.0)),
+            state=pick(live, new, state),  # carried state advances only while the trial runs
             ended=slot["ended"] | ended_now,
-            success=jnp.where(ended_now, success & ~unstable, slot["success"]),
-            unstable=jnp.where(ended_now, unstable, slot["unstable"]),
-            settled=jnp.where(ended_now, settled, slot["settled"]),
-            tip=jnp.where(live | ended_now, tip, slot["tip"]),
-            sensor_state=keep(sensor_state, slot["sensor_state"]),
-            coupled=keep(coupled, slot["coupled"]),
-            chatter_ring=ring,
-            axial=keep(axial, slot["axial"]),
-            chatter=jnp.where(ended_now, chatter, slot["chatter"]),
-            stop=slot["stop"] | (live & (force_mag > cfg.max_tool_force)),
+            outcome=pick(ended_now, outcome, slot["outcome"]),
         )
-        if cfg.end_settled:
-            slot["settle"] = settle_update(slot["settle"], step, d_qvel, tcp_pos, coupled, cfg)
-        return d, slot
 
     # --- the batch ----------------------------------------------------------------------------
     def _run(self, inputs: dict):
@@ -286,27 +201,14 @@ class _Program:
         d, slot = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
         slot = dict(slot, ended=jnp.ones(b, bool))
         index = jnp.full(b, n)  # index n: no spec (writes to it are dropped)
-        out = dict(
-            success=jnp.zeros(n, bool),
-            unstable=jnp.zeros(n, bool),
-            settled=jnp.zeros(n, bool),
-            steps=jnp.zeros(n, jnp.int32),
-            peak_force=jnp.zeros(n),
-            tip=jnp.zeros((n, 3)),
-            start_distance=jnp.ones(n),
-            chatter=jnp.zeros(n),
-            protective_stop=jnp.zeros(n, bool),
-        )
+        out = jax.tree.map(lambda x: jnp.zeros((n, *x.shape[1:]), x.dtype), slot["outcome"])
         state = (d, slot, index, jnp.asarray(0), out)
 
         def chunk(state):
             d, slot, index, next_index, out = state
             # Slots whose trial ended write their outcome and take the next spec.
             dest = jnp.where(slot["ended"], index, n)
-            out = {
-                key: out[key].at[dest].set(slot[name], mode="drop")
-                for key, name in _OUTCOMES.items()
-            }
+            out = jax.tree.map(lambda o, v: o.at[dest].set(v, mode="drop"), out, slot["outcome"])
             finished = slot["ended"]
             new_index = jnp.where(finished, next_index + jnp.cumsum(finished) - 1, index)
             new_index = jnp.minimum(new_index, n)
@@ -354,51 +256,20 @@ def run_trials(
         (constants.SHAPES[int(s)], round(float(z), 9))
         for s, z in zip(specs.shape_id, specs.size, strict=True)
     ]
-    out_arrays = {
-        "success": np.zeros(n, bool),
-        "unstable": np.zeros(n, bool),
-        "settled": np.zeros(n, bool),
-        "steps": np.zeros(n, np.int64),
-        "peak_force": np.zeros(n),
-        "final_tip_pos": np.zeros((n, 3)),
-        "start_distance": np.ones(n),
-        "chatter": np.zeros(n),
-        "protective_stop": np.zeros(n, bool),
-    }
+    out_arrays: dict[str, np.ndarray] = {}
     for key in sorted(set(keys)):
         rows = np.array([i for i, k in enumerate(keys) if k == key])
         b = min(batch or 256, len(rows))
         program = _program(key[0], key[1], config, b, recycle_every)
         inputs = {k: jnp.asarray(v[rows]) for k, v in inputs_all.items()}
         out = jax.device_get(program.run(inputs))
-        out_arrays["success"][rows] = out["success"]
-        out_arrays["unstable"][rows] = out["unstable"]
-        out_arrays["settled"][rows] = out["settled"]
-        out_arrays["steps"][rows] = out["steps"]
-        out_arrays["peak_force"][rows] = out["peak_force"]
-        out_arrays["final_tip_pos"][rows] = out["tip"]
-        out_arrays["start_distance"][rows] = out["start_distance"]
-        out_arrays["chatter"][rows] = out["chatter"]
-        out_arrays["protective_stop"][rows] = out["protective_stop"]
+        for name, value in out._asdict().items():
+            if name not in out_arrays:
+                out_arrays[name] = np.zeros((n, *value.shape[1:]), value.dtype)
+            out_arrays[name][rows] = value
         if progress is not None:
             progress(len(rows))
-    success = out_arrays["success"]
-    reward = trial_reward(
-        success,
-        out_arrays["final_tip_pos"],
-        np.asarray(specs.board_pos, dtype=np.float64),
-        out_arrays["start_distance"],
-        config.reward,
-    )
-    return TrialResult(
-        success=success,
-        time_s=out_arrays["steps"] * config.timestep,
-        final_tip_pos=out_arrays["final_tip_pos"],
-        peak_force=out_arrays["peak_force"],
-        reward=np.asarray(reward),
-        unstable=out_arrays["unstable"],
-        steps=out_arrays["steps"],
-        settled=out_arrays["settled"],
-        chatter=out_arrays["chatter"],
-        protective_stop=out_arrays["protective_stop"],
-    )
+    if not out_arrays:  # no trials
+        return TrialResult.concat([])
+    steps = out_arrays["steps"].astype(np.int64)
+    return TrialResult(**dict(out_arrays, steps=steps, time_s=steps * config.timestep))

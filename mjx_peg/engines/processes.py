@@ -32,6 +32,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from mjx_peg.engines import interrupt
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world.task import TrialSpec
@@ -55,9 +56,9 @@ def _start_worker(progress_queue, parent: int) -> None:
 
 
 def _run_shard(specs, params, config, threads, options) -> TrialResult:
-    from mjx_peg.engines import mujoco
+    from mjx_peg.engines import lanes
 
-    return mujoco.run_trials(
+    return lanes.run_trials(
         specs, params, config, threads=threads, progress=_progress_queue.put, **options
     )
 
@@ -163,6 +164,7 @@ def run_trials(
         while pending:
             done, pending = wait(pending, timeout=0.05, return_when=FIRST_EXCEPTION)
             _drain(progress_queue, progress)
+            interrupt.check()
             for future in done:
                 future.result()  # a worker's error, raised here
         parts = [f.result() for f in futures]

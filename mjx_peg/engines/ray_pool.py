@@ -2,7 +2,7 @@
 
 `mujoco.run_trials(..., ray=ADDRESS)` joins a cluster (`"auto"`: the one `ray start` runs on
 this node; `"local"`: starts one on this machine; else `HOST:PORT`), keeps one actor per CPU the
-cluster offers (`Lane`: each runs `mujoco.run_trials` on its share in-process, keeping its
+cluster offers (`Lane`: each runs `lanes.run_trials` on its share in-process, keeping its
 `mujoco.batch` simulations warm between calls, as a worker process of `engines/processes.py`
 does), splits the trials into interleaved pieces (trial k to piece k mod P: one per actor,
 up to four per actor for large calls), hands each actor the next piece as it finishes one, and
@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 from mjx_peg.engines.processes import interleaved, merge, take_params
 from mjx_peg.engines.trial import TrialConfig, TrialResult
+from mjx_peg.errors import UsageError
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world.task import TrialSpec
 
@@ -37,7 +38,7 @@ MIN_PIECE_TRIALS = 512
 _actors: list = []  # one Lane per CPU of the cluster joined
 
 
-class ClusterError(ValueError):
+class ClusterError(UsageError):
     """Ray is missing, or the cluster cannot be reached or used (one line says why)."""
 
 
@@ -53,9 +54,9 @@ class Lane:
     process (its simulations stay warm between calls)."""
 
     def run(self, specs: TrialSpec, params: ControllerParams, config: TrialConfig, options):
-        from mjx_peg.engines import mujoco
+        from mjx_peg.engines import lanes
 
-        return mujoco.run_trials(specs, params, config, threads=1, **options)
+        return lanes.run_trials(specs, params, config, threads=1, **options)
 
     def pid(self) -> int:
         import os

@@ -3,9 +3,10 @@
 A trial: the board, peg and errors of one `TrialSpec`, the compliant DMP with the trial's 38
 controller parameters driving the operational-space torque controller at 500 Hz (2 ms physics),
 until the peg tip has passed the hole and is within `success_height` of the table, or until the
-time limit. Both engines (`engines/mujoco.py`, `engines/mjx.py`) use the functions here for the
-goal, the success test, the reward and the numerical-failure test, so their outcomes can only
-differ through the physics.
+time limit. This module holds what defines a trial (its config, the success test, the reward,
+the settle test, the result); `engines/period.py` composes them into the control period both
+engines (`engines/lanes.py`, `engines/mjx.py`) call, so their outcomes can only differ through
+the physics.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mjx_peg._xp import namespace_of
+from mjx_peg.errors import UsageError
 from mjx_peg.skill import dmp, sensor
 from mjx_peg.skill.control_step import Basis, ControlConfig
 from mjx_peg.skill.params import ControllerParams, controller_from_vector
@@ -84,26 +87,26 @@ class TrialConfig:
                     "settle_window_s", "settle_joint_speed", "settle_tip_m", "settle_force_n",
                     "settle_moment_nm", "max_tool_force", "chatter_window_s")  # fmt: skip
         if not (math.isfinite(self.settle_after_s) and self.settle_after_s >= 0):
-            raise ValueError(
+            raise UsageError(
                 f"TrialConfig.settle_after_s must be a number >= 0, got {self.settle_after_s!r}"
             )
         if isinstance(self.settle_windows, bool) or not (
             isinstance(self.settle_windows, int) and self.settle_windows >= 1
         ):
-            raise ValueError(
+            raise UsageError(
                 f"TrialConfig.settle_windows must be an integer >= 1, got {self.settle_windows!r}"
             )
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"TrialConfig.{name} must be a positive number, got {value!r}")
+                raise UsageError(f"TrialConfig.{name} must be a positive number, got {value!r}")
         value = self.coupling_time_constant
         if not (math.isfinite(value) and value >= 0):
-            raise ValueError(
+            raise UsageError(
                 f"TrialConfig.coupling_time_constant must be a number >= 0, got {value!r}"
             )
         if self.time_limit_s < self.timestep:
-            raise ValueError(
+            raise UsageError(
                 f"TrialConfig.time_limit_s ({self.time_limit_s}) is shorter than one step"
             )
 
@@ -249,12 +252,13 @@ def sensor_params(specs, config: TrialConfig) -> sensor.SensorParams:
     )
 
 
-def chatter_of(ring: np.ndarray, steps) -> np.ndarray:
-    """(B,) chatter from a ring (B, W) of |F_k - F_(k-1)| written at index k mod W, k >= 1,
-    after `steps` (B,) control periods: the mean of the last min(steps - 1, W) entries."""
-    ring = np.atleast_2d(ring)
-    count = np.clip(np.asarray(steps) - 1, 0, ring.shape[-1])
-    return np.where(count > 0, ring.sum(axis=-1) / np.maximum(count, 1), 0.0)
+def chatter_of(ring, steps):
+    """(...,) N: the chatter metric (TrialResult.chatter) from a ring (..., W) of |F_k - F_(k-1)|
+    written at index k mod W, k >= 1, after `steps` (...,) control periods: the mean of the last
+    min(steps - 1, W) entries."""
+    xp = namespace_of(ring)
+    count = xp.clip(xp.asarray(steps) - 1, 0, ring.shape[-1])
+    return xp.where(count > 0, xp.sum(ring, axis=-1) / xp.maximum(count, 1), 0.0)
 
 
 class SettleState(NamedTuple):
@@ -337,7 +341,7 @@ def as_controller_params(params, batch: int) -> ControllerParams:
     if not isinstance(params, ControllerParams):
         vec = np.asarray(params, dtype=np.float64)
         if vec.shape not in ((38,), (batch, 38)):
-            raise ValueError(
+            raise UsageError(
                 f"controller parameters must have shape (38,) or ({batch}, 38), got {vec.shape}"
             )
         params = controller_from_vector(vec)
@@ -346,7 +350,7 @@ def as_controller_params(params, batch: int) -> ControllerParams:
     compliance = np.broadcast_to(np.asarray(params.compliance, dtype=np.float64), (batch, 6, 6))
     for name, value in (("k_t", k_t), ("k_theta", k_theta), ("compliance", compliance)):
         if not np.all(np.isfinite(value)):
-            raise ValueError(f"controller parameter {name} has NaN or infinite values")
+            raise UsageError(f"controller parameter {name} has NaN or infinite values")
     if np.any(k_t <= 0) or np.any(k_theta <= 0):
-        raise ValueError("controller stiffnesses k_t and k_theta must be positive")
+        raise UsageError("controller stiffnesses k_t and k_theta must be positive")
     return ControllerParams(k_t.copy(), k_theta.copy(), compliance.copy())

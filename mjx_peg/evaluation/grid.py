@@ -17,16 +17,11 @@ paper has numbers for the condition, paper_comparison.png.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import hashlib
-import importlib
-import inspect
 import json
 import math
-import sys
-import time
 import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,8 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import cli
-from mjx_peg.engines import ENGINES, resolve_engine, run_trials
+from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
 from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.skill.baseline import baseline_params
@@ -69,13 +65,13 @@ DEFAULT_CHUNK_TRIALS = 10_000  # trials per run_trials call: results saved this 
 CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
-_MAX_ERROR = {"linear_mm": (0.0, 50.0), "angular_deg": (0.0, 45.0)}  # TaskConfig's, mm and deg
+MAX_ERROR = {"linear_mm": (0.0, 50.0), "angular_deg": (0.0, 45.0)}  # TaskConfig's, mm and deg
 _RESULT_FIELDS = (
     "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled",
     "chatter", "protective_stop",
 )  # fmt: skip
 # Evaluations from before early ending ran every failure to the time limit; those from before
-# credible contact (issue 18: the F/T pipeline, the protective stop, the compliance damping) ran
+# credible contact (the F/T pipeline, the protective stop, the compliance damping) ran
 # another physics (contact_model 1) and recorded no contact metrics.
 _OLD_DEFAULTS = {"full_time_limit": True, "contact_model": 1}
 _CONTACT_FIELDS = ("chatter", "protective_stop")
@@ -100,36 +96,36 @@ class EvalConfig:
     # has settled ends early (TrialConfig.end_settled), with the same outcome
     full_time_limit: bool = False
     # The trial's physics and sensing: 2 since credible contact (the F/T pipeline, protective
-    # stop and compliance damping of issue 18); an evaluation made with 1 cannot be resumed.
+    # stop and compliance damping); an evaluation made with 1 cannot be resumed.
     contact_model: int = CONTACT_MODEL
 
     def __post_init__(self):
         if self.grid not in GRIDS:
-            raise ValueError(f"unknown grid {self.grid!r}: choose from {', '.join(GRIDS)}")
+            raise UsageError(f"unknown grid {self.grid!r}: choose from {', '.join(GRIDS)}")
         for name in ("linear_mm", "angular_deg"):
             values = tuple(float(v) for v in getattr(self, name))
             if not values:
-                raise ValueError(f"{name} is empty: the grid needs at least one range")
-            lower, upper = _MAX_ERROR[name]
+                raise UsageError(f"{name} is empty: the grid needs at least one range")
+            lower, upper = MAX_ERROR[name]
             if not all(math.isfinite(v) and lower <= v <= upper for v in values):
-                raise ValueError(f"{name} must lie in [{lower:g}, {upper:g}], got {values}")
+                raise UsageError(f"{name} must lie in [{lower:g}, {upper:g}], got {values}")
             if len(set(values)) != len(values):
-                raise ValueError(f"{name} repeats a value: {values}")
+                raise UsageError(f"{name} repeats a value: {values}")
             object.__setattr__(self, name, tuple(sorted(values)))
         if isinstance(self.trials, bool) or not isinstance(self.trials, int) or self.trials < 1:
-            raise ValueError(f"trials per range must be a positive integer, got {self.trials!r}")
+            raise UsageError(f"trials per range must be a positive integer, got {self.trials!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+            raise UsageError(f"seed must be an integer >= 0, got {self.seed!r}")
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
         if not shapes or len(set(shapes)) != len(shapes):
-            raise ValueError(f"shapes must be distinct names from {', '.join(SHAPES)}")
+            raise UsageError(f"shapes must be distinct names from {', '.join(SHAPES)}")
         object.__setattr__(self, "shapes", shapes)
         if not (math.isfinite(self.size_mm) and self.size_mm > 0):
-            raise ValueError(f"size must be a positive number of mm, got {self.size_mm!r}")
+            raise UsageError(f"size must be a positive number of mm, got {self.size_mm!r}")
         if self.engine not in ("mujoco", "mjx"):
-            raise ValueError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
+            raise UsageError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
         if not isinstance(self.full_time_limit, bool):
-            raise ValueError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
+            raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
         # Validates shapes, size and the largest errors (reach of the workspace) once, up front.
         task_config(self, self.shapes[0], self.linear_mm[-1], self.angular_deg[-1])
@@ -177,12 +173,12 @@ def grid_axes(
     """
     if grid == "custom":
         if linear_mm is None or angular_deg is None:
-            raise ValueError("--grid custom needs --linear-mm and --angular-deg")
+            raise UsageError("--grid custom needs --linear-mm and --angular-deg")
         return tuple(linear_mm), tuple(angular_deg), None
     if grid not in PRESETS:
-        raise ValueError(f"unknown grid {grid!r}: choose from {', '.join(GRIDS)}")
+        raise UsageError(f"unknown grid {grid!r}: choose from {', '.join(GRIDS)}")
     if linear_mm is not None or angular_deg is not None:
-        raise ValueError("--linear-mm and --angular-deg are for --grid custom only")
+        raise UsageError("--linear-mm and --angular-deg are for --grid custom only")
     linear, angular, trials = PRESETS[grid]
     scale = 1.0 if linear_absolute else size_mm / PRESET_SIZE_MM
     return tuple(round(v * scale, 9) for v in linear), angular, trials
@@ -202,10 +198,10 @@ def parse_ranges(text: str, name: str, limit: int = cli.MAX_AXIS) -> tuple[float
             if len(parts) == 3:
                 start, stop, step = parts
                 if not step > 0:
-                    raise ValueError(f"{name}: step of {item!r} must be positive")
+                    raise UsageError(f"{name}: step of {item!r} must be positive")
                 count = (stop - start) / step + 1e-9
                 if count + 1 + len(values) > limit:
-                    raise ValueError(
+                    raise UsageError(
                         f"{name}: {item!r} gives more than {limit:,} values, the most a grid axis "
                         "takes"
                     )
@@ -214,14 +210,25 @@ def parse_ranges(text: str, name: str, limit: int = cli.MAX_AXIS) -> tuple[float
             else:
                 values.append(parts[0])
             if len(values) > limit:
-                raise ValueError(f"{name}: more than {limit:,} values, the most a grid axis takes")
+                raise UsageError(f"{name}: more than {limit:,} values, the most a grid axis takes")
     except ValueError as exc:
         if str(exc).startswith(name):
             raise
         shown = text if len(text) <= 40 else text[:37] + "..."
-        raise ValueError(f"{name}: cannot read {shown!r} (give 0.5,1,2 or 1:8:1)") from None
+        raise UsageError(f"{name}: cannot read {shown!r} (give 0.5,1,2 or 1:8:1)") from None
     if not values:
-        raise ValueError(f"{name} is empty: give comma-separated values or START:STOP:STEP")
+        raise UsageError(f"{name} is empty: give comma-separated values or START:STOP:STEP")
+    seen, repeated = set(), []
+    for v in values:
+        if v in seen and v not in repeated:
+            repeated.append(v)
+        seen.add(v)
+    if repeated:
+        shown = ", ".join(f"{v:g}" for v in repeated[:3]) + (", ..." if len(repeated) > 3 else "")
+        raise UsageError(
+            f"{name} repeats {len(repeated):,} value{'s' * (len(repeated) > 1)} ({shown}): ranges "
+            "are rounded to 1e-9, give distinct values"
+        )
     return tuple(values)
 
 
@@ -284,11 +291,11 @@ def prepare_out_dir(
     path = out / CONFIG_FILE
     wanted = config.to_json()
     if out.exists() and not out.is_dir():
-        raise ValueError(f"{out} exists and is not a directory; use another --out")
+        raise UsageError(f"{out} exists and is not a directory; use another --out")
     if path.is_file():
         saved = _saved_config(path)
         if saved is None:
-            raise ValueError(f"{path} is not an evaluation config; use another --out")
+            raise UsageError(f"{path} is not an evaluation config; use another --out")
         saved = {**_OLD_DEFAULTS, **saved}
         diff = [k for k in wanted if saved.get(k) != wanted[k]]
         if force:
@@ -297,7 +304,7 @@ def prepare_out_dir(
                 note(f"--force: moved the earlier evaluation in {out} aside to {moved}")
         elif diff:
             k = diff[0]
-            raise ValueError(
+            raise UsageError(
                 f"{out} holds an evaluation with a different config ({k}: {saved.get(k)!r} "
                 f"there, {wanted[k]!r} now); use another --out or the same options, or pass "
                 "--force to move it aside and start over"
@@ -308,7 +315,7 @@ def prepare_out_dir(
             cli.write_atomic(path, path.read_bytes())  # writable (or one line), unchanged
             return out
     elif out.exists() and any(out.iterdir()):
-        raise ValueError(
+        raise UsageError(
             f"{out} exists and is not an evaluation directory; use another --out (--force "
             "replaces only an evaluation)"
         )
@@ -324,24 +331,24 @@ def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
     """(config, policy run directory or None for the baseline) of an evaluation directory."""
     path = Path(eval_dir) / CONFIG_FILE
     if not path.is_file():
-        raise ValueError(f"{eval_dir} holds no {CONFIG_FILE}: not an evaluation directory")
+        raise UsageError(f"{eval_dir} holds no {CONFIG_FILE}: not an evaluation directory")
     try:
         doc = json.loads(path.read_text())
         if doc.get("schema") != SCHEMA:
             raise ValueError
         config = EvalConfig(**{**_OLD_DEFAULTS, **doc["config"]})
     except (OSError, ValueError, KeyError, TypeError):
-        raise ValueError(f"{path} is not an mjx-peg evaluation config") from None
+        raise UsageError(f"{path} is not an mjx-peg evaluation config") from None
     return config, doc.get("policy_dir")
 
 
-def _range_path(out: Path, index: int) -> Path:
+def range_path(out: Path, index: int) -> Path:
     return out / RANGES_DIR / f"{index:05d}.npz"
 
 
 def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarray] | None:
     """Per-trial results of a finished range, or None if it has not finished."""
-    path = _range_path(out, index)
+    path = range_path(out, index)
     if not path.is_file():
         return None
     try:
@@ -353,12 +360,12 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
         optional = _CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
         missing = [k for k in _RESULT_FIELDS if k not in arrays and k not in optional]
         if missing:
-            raise ValueError(f"no {', '.join(missing)}")
+            raise UsageError(f"no {', '.join(missing)}")
         wrong = [k for k in _RESULT_FIELDS if k in arrays and arrays[k].shape != (config.trials,)]
         if wrong:
-            raise ValueError(f"{wrong[0]} does not hold {config.trials} trials")
+            raise UsageError(f"{wrong[0]} does not hold {config.trials} trials")
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise ValueError(
+        raise UsageError(
             f"{path} is corrupt or truncated ({type(e).__name__}: {cli.message(e)}); delete it "
             "and rerun the same command to run that range again"
         ) from None
@@ -382,7 +389,7 @@ def run_evaluation(
 
     out = Path(out_dir)
     n_ranges = len(config.ranges)
-    done = {i for i in range(n_ranges) if _range_path(out, i).is_file()}
+    done = {i for i in range(n_ranges) if range_path(out, i).is_file()}
     per_chunk = max(1, chunk_trials // config.trials)
     chunks = [range(s, min(s + per_chunk, n_ranges)) for s in range(0, n_ranges, per_chunk)]
     trial_config = config.trial_config()
@@ -415,7 +422,7 @@ def run_evaluation(
                 rows = slice(start, start + len(s))
                 arrays = {k: getattr(result, k)[rows] for k in _RESULT_FIELDS if k != "shape_id"}
                 arrays["shape_id"] = s.shape_id
-                cli.write_atomic(_range_path(out, i), lambda p, a=arrays: np.savez(p, **a))
+                cli.write_atomic(range_path(out, i), lambda p, a=arrays: np.savez(p, **a))
                 start += len(s)
             ran += len(result)
     return ran
@@ -459,12 +466,14 @@ def grid_table(out_dir, config: EvalConfig) -> es.GridTable:
 def load_evaluation_grid(eval_dir) -> es.GridTable:
     """The grid table of a finished evaluation directory (for --compare)."""
     eval_dir = Path(eval_dir)
+    if not eval_dir.exists():
+        raise UsageError(f"{eval_dir} does not exist")
     if not eval_dir.is_dir():
-        raise ValueError(f"{eval_dir} is not a directory")
+        raise UsageError(f"{eval_dir} is not a directory")
     try:
         return es.GridTable.from_csv(eval_dir / GRID_FILE)
     except csv.Error as e:
-        raise ValueError(f"{eval_dir / GRID_FILE} is not an evaluation grid.csv ({e})") from None
+        raise UsageError(f"{eval_dir / GRID_FILE} is not an evaluation grid.csv ({e})") from None
 
 
 def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str) -> list[str]:
@@ -552,225 +561,3 @@ def write_outputs(
 
 # ---------------------------------------------------------------------------------------------
 # The CLI (eval.py).
-
-
-def check_engine_options(engine: str, options: dict) -> None:
-    """ValueError unless the engine's run_trials takes every option by name."""
-    impl = importlib.import_module(f"mjx_peg.engines.{engine}")
-    params = inspect.signature(impl.run_trials).parameters
-    takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
-    for key in options:
-        if key in ("specs", "params", "config", "progress") or not (takes_any or key in params):
-            raise ValueError(f"the {engine} engine takes no option {key!r}")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog=PROG,
-        description="Evaluate a policy over a grid of error ranges (paper section 6): grid.csv, "
-        "heatmaps and summary.md in --out. Rerun the same command to resume.",
-    )
-    p.add_argument(
-        "--policy",
-        type=cli.nonempty_path,
-        required=True,
-        help="run directory with policy.npz, or 'baseline'",
-    )
-    p.add_argument(
-        "--out",
-        type=cli.nonempty_path,
-        required=True,
-        help="output directory (an evaluation with the same options there is resumed)",
-    )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="start over in --out although it holds an evaluation (another config, or finished): "
-        "the earlier one is moved aside to OUT.replaced-DATE-TIME (nothing but an evaluation is "
-        "ever replaced)",
-    )
-    p.add_argument(
-        "--grid",
-        default="paper-small",
-        choices=GRIDS,
-        help="paper: 25 x 14 ranges, N=200; paper-small: 10 x 10, N=50; custom",
-    )
-    p.add_argument(
-        "--linear-mm",
-        help="custom grid: linear ranges (mm), e.g. 0.5,1,2 or 1:8:1; each in [0, 50] mm, at "
-        f"most {cli.MAX_AXIS:,} values",
-    )
-    p.add_argument(
-        "--angular-deg",
-        help="custom grid: angular ranges (deg), e.g. 2,6 or 2:12:2; each in [0, 45] deg, at "
-        f"most {cli.MAX_AXIS:,} values",
-    )
-    p.add_argument(
-        "--linear-absolute",
-        action="store_true",
-        help="preset grids: keep the linear ranges in mm instead of scaling with S/50mm",
-    )
-    p.add_argument(
-        "--shape",
-        default=",".join(DEFAULT_SHAPES),
-        help=f"comma-separated shapes from {', '.join(SHAPES)} (trials split evenly)",
-    )
-    p.add_argument(
-        "--size", type=cli.SIZE_MM, default=50.0, help="characteristic size S (default 50)"
-    )
-    p.add_argument(
-        "--trials",
-        type=cli.TRIALS,
-        help=f"trials per range (default: the grid's); at most {cli.MAX_GRID_TRIALS:,} in the grid",
-    )
-    p.add_argument(
-        "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial, the paper's 60"
-    )
-    p.add_argument(
-        "--full-time-limit",
-        action="store_true",
-        help="run every failure to the time limit, the paper's protocol (default: a failure "
-        "that has settled, at rest or repeating the same motion, ends early; same outcome)",
-    )
-    p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
-    p.add_argument("--engine", default="auto", choices=ENGINES)
-    p.add_argument(
-        "--threads", type=cli.integer(1, 64), help="engine option threads (if it takes it)"
-    )
-    p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
-    cli.add_processes_option(p, "--threads")
-    cli.add_ray_option(p)
-    p.add_argument(
-        "--chunk-trials",
-        type=cli.TRIALS,
-        default=DEFAULT_CHUNK_TRIALS,
-        help="trials per engine call; results are saved after each",
-    )
-    p.add_argument(
-        "--compare",
-        type=cli.nonempty_path,
-        metavar="OTHER_EVAL_DIR",
-        help="test this evaluation against another one per quarter",
-    )
-    p.add_argument(
-        "--alternative",
-        default="less",
-        choices=("less", "greater", "two-sided"),
-        help="--compare: this success rate is less (generalization vs nominal) or "
-        "greater (after vs before re-training) than the other's",
-    )
-    p.add_argument(
-        "--paper",
-        default="auto",
-        choices=("auto", *es.PAPER_CONDITIONS, "none"),
-        help="the paper's numbers to print beside ours (auto: by shape and size)",
-    )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return p
-
-
-def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
-    """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
-    linear = None if args.linear_mm is None else parse_ranges(args.linear_mm, "--linear-mm")
-    angular = None if args.angular_deg is None else parse_ranges(args.angular_deg, "--angular-deg")
-    linear, angular, trials = grid_axes(
-        args.grid, args.size, linear, angular, linear_absolute=args.linear_absolute
-    )
-    for flag, values, unit in (("--linear-mm", linear, "mm"), ("--angular-deg", angular, "deg")):
-        lo, hi = _MAX_ERROR[flag[2:].replace("-", "_")]
-        bad = [v for v in values if not lo <= v <= hi]
-        if bad:
-            what = "ranges" if args.grid == "custom" else f"ranges of the {args.grid} grid at S"
-            raise ValueError(f"{flag} {what} must lie in [{lo:g}, {hi:g}] {unit}, got {bad[0]:g}")
-    trials = args.trials if args.trials is not None else trials
-    if trials is None:
-        raise ValueError("--grid custom needs --trials")
-    n_ranges = len(set(linear)) * len(set(angular))
-    if n_ranges > cli.MAX_RANGES:
-        raise ValueError(
-            f"{n_ranges:,} error ranges: an evaluation grid takes at most {cli.MAX_RANGES:,}"
-        )
-    if n_ranges * trials > cli.MAX_GRID_TRIALS:
-        raise ValueError(
-            f"{n_ranges:,} ranges x {trials:,} trials: an evaluation grid takes at most "
-            f"{cli.MAX_GRID_TRIALS:,} trials"
-        )
-    shapes = tuple(s.strip() for s in args.shape.split(",") if s.strip())
-    for shape in shapes:
-        if shape not in SHAPES:
-            raise ValueError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
-    return EvalConfig(
-        policy=policy_label,
-        grid=args.grid,
-        linear_mm=linear,
-        angular_deg=angular,
-        trials=trials,
-        shapes=shapes,
-        size_mm=args.size,
-        time_limit_s=args.time_limit,
-        full_time_limit=args.full_time_limit,
-        seed=args.seed,
-        engine=resolve_engine(args.engine),
-    )
-
-
-@cli.entry(PROG)
-def main(argv: Sequence[str] | None = None) -> int:
-    """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
-    args = build_parser().parse_args(argv)
-    out = args.out
-    policy = str(args.policy)
-    policy_label, controller = load_controller(policy)
-    config = config_from_args(args, policy_label)
-    if args.ray is not None:
-        options = cli.ray_options(args, config.engine, ("--threads", "--workers"))
-    else:
-        options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
-        processes = cli.resolve_processes(args.processes, config.engine)
-        if processes is not None:
-            options["processes"] = processes
-    check_engine_options(config.engine, options)
-    other = None if args.compare is None else load_evaluation_grid(args.compare)
-    paper_name = args.paper
-    if paper_name == "auto":
-        paper_name = es.paper_condition_for(config.shapes, config.size_mm)
-    elif paper_name == "none":
-        paper_name = None
-    cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    if args.ray is not None:  # join the cluster before anything is written
-        from mjx_peg.engines import ray_pool
-
-        ray_pool.connect(args.ray)
-    prepare_out_dir(
-        out,
-        config,
-        None if policy == "baseline" else policy,
-        force=args.force,
-        note=lambda text: cli.note(PROG, text),
-    )
-    from mjx_peg.world import mujoco_log
-
-    mujoco_log.send_to(out)
-    n_ranges = len(config.ranges)
-    start = time.perf_counter()
-    try:
-        ran = run_evaluation(
-            config, out, controller, options, args.chunk_trials, show_progress=not args.no_progress
-        )
-    except KeyboardInterrupt:
-        done = sum(_range_path(out, i).is_file() for i in range(n_ranges))
-        print(
-            f"eval.py: interrupted with {done} of {n_ranges} ranges saved in {out}; run the "
-            "same command to resume",
-            file=sys.stderr,
-        )
-        return cli.EXIT_INTERRUPTED
-    label = policy_label if policy == "baseline" else f"{policy} ({policy_label[:19]})"
-    write_outputs(out, config, label, paper_name, other, args.compare or "", args.alternative)
-    wall = time.perf_counter() - start
-    print(
-        f"eval.py: {ran} trials run ({n_ranges * config.trials} in the grid) in {wall:.1f} s; "
-        f"wrote {out / GRID_FILE}, {SUCCESS_PNG}, {TIME_PNG}, {SUMMARY_FILE}"
-        + (f", {PAPER_PNG}" if paper_name is not None else "")
-    )
-    return 0

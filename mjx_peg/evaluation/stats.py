@@ -22,6 +22,8 @@ import math
 import numpy as np
 from scipy import stats
 
+from mjx_peg.errors import UsageError
+
 ALPHA = 0.05  # the paper's significance level
 QUARTERS: tuple[str, ...] = ("Q1", "Q2", "Q3", "Q4")
 # Every unordered pair of quarters; each is tested in both one-sided directions.
@@ -37,7 +39,7 @@ def quarter_labels(linear, angular) -> np.ndarray:
     """
     linear, angular = np.asarray(linear, dtype=float), np.asarray(angular, dtype=float)
     if linear.shape != angular.shape or linear.ndim != 1:
-        raise ValueError(f"linear {linear.shape} and angular {angular.shape} must be equal 1-D")
+        raise UsageError(f"linear {linear.shape} and angular {angular.shape} must be equal 1-D")
 
     def large(values: np.ndarray) -> np.ndarray:
         axis = np.unique(values)
@@ -88,7 +90,7 @@ class UTest:
 def mann_whitney(x, y, alternative: str) -> UTest:
     """scipy.stats.mannwhitneyu on the finite values of x and y; NaN p if a sample is empty."""
     if alternative not in ("greater", "less", "two-sided"):
-        raise ValueError(f"alternative must be greater, less or two-sided, got {alternative!r}")
+        raise UsageError(f"alternative must be greater, less or two-sided, got {alternative!r}")
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     x, y = x[np.isfinite(x)], y[np.isfinite(y)]
     if x.size == 0 or y.size == 0:
@@ -121,7 +123,7 @@ def quarter_order_tests(values, quarters, metric: str) -> list[OrderTest]:
     metric "success": better = higher success rate; "time": better = shorter time.
     """
     if metric not in METRICS:
-        raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
+        raise UsageError(f"metric must be one of {METRICS}, got {metric!r}")
     values, quarters = np.asarray(values, dtype=float), np.asarray(quarters)
     up, down = ("greater", "less") if HIGHER_IS_BETTER[metric] else ("less", "greater")
     tests = []
@@ -352,7 +354,7 @@ class GridTable:
             with open(path, newline="") as f:
                 rows = list(csv.DictReader(f))
             if not rows:
-                raise ValueError("no rows")
+                raise UsageError("no rows")
             col = {c: [r[c] for r in rows] for c in GRID_COLUMNS if c in rows[0]}
             contact = {c: np.array(col[c], dtype=float) for c in _CONTACT_COLUMNS if c in col}
             return cls(
@@ -362,9 +364,9 @@ class GridTable:
                 **{c: np.array(col[c], dtype=float) for c in _TIME_COLUMNS},
             )
         except OSError:
-            raise ValueError(f"{path} is missing: not a finished evaluation") from None
+            raise UsageError(f"{path} is missing: not a finished evaluation") from None
         except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{path} is not an evaluation grid.csv ({exc!r})") from None
+            raise UsageError(f"{path} is not an evaluation grid.csv ({exc!r})") from None
 
 
 _QUARTER_NAMES = {

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from mjx_peg import cli
 from mjx_peg.engines import ENGINES
+from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS
 
 PROG = "train.py"
@@ -36,7 +37,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", choices=ENGINES, help="physics engine (preset: mujoco)")
     p.add_argument("--seed", type=cli.SEED, help="preset: 0")
     p.add_argument("--num-envs", type=cli.integer(1, MAX_NUM_ENVS), help="trials per iteration")
-    p.add_argument("--trials", type=cli.integer(1, MAX_TRIALS), help="training budget in trials")
+    p.add_argument(
+        "--trials",
+        type=cli.integer(1, MAX_TRIALS),
+        help="training budget in trials, rounded up to whole iterations of --num-envs",
+    )
     p.add_argument("--time-limit", type=cli.TIME_LIMIT_S, help="per training trial")
     p.add_argument(
         "--init-from", type=cli.nonempty_path, help="run directory whose networks start this run"
@@ -69,7 +74,7 @@ def parser() -> argparse.ArgumentParser:
         "--action-map",
         choices=ACTION_MAPS,
         help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
-        "baseline; sigmoid: the map of runs before issue 18; --init-from takes its run's map)",
+        "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
@@ -99,12 +104,12 @@ def resolve_config(args):
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:
-        raise ValueError("--preset transfer needs --init-from RUN_DIR (a finished run)")
+        raise UsageError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
         source = RunDir(config.init_from).read_config().action_map
         if args.action_map not in (None, source):
-            raise ValueError(
+            raise UsageError(
                 f"--action-map {args.action_map}: {config.init_from} was trained with the {source}"
                 " map, and its networks mean that map's actions"
             )
@@ -122,14 +127,14 @@ def join_distributed() -> None:
         try:
             return None if value is None else int(value)
         except ValueError:
-            raise ValueError(f"{name}={value!r} is not an integer") from None
+            raise UsageError(f"{name}={value!r} is not an integer") from None
 
     try:
         jax.distributed.initialize(
             num_processes=number("JAX_NUM_PROCESSES"), process_id=number("JAX_PROCESS_ID")
         )
     except (RuntimeError, ValueError) as e:
-        raise ValueError(f"--distributed: could not join the run ({e})") from None
+        raise UsageError(f"--distributed: could not join the run ({e})") from None
 
 
 @cli.entry(PROG, "interrupted; rerun the same command to resume")
@@ -137,6 +142,13 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     out = args.out or Path("runs", args.preset)
     config = resolve_config(args)
+    if config.iterations * config.num_envs != config.trials:
+        cli.note(
+            PROG,
+            f"--trials {config.trials:,} rounded up to {config.iterations:,} iteration"
+            f"{'s' * (config.iterations > 1)} of {config.num_envs:,} trials "
+            f"({config.iterations * config.num_envs:,} trials)",
+        )
     from mjx_peg.engines import resolve_engine
 
     engine = resolve_engine(config.engine)

@@ -19,13 +19,14 @@ import math
 
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
 # How the policy's unbounded action becomes the 38 numbers (skill/params.py): "centred" puts
 # action 0 at the baseline with the sensitivity of a range's middle in both directions;
-# "sigmoid" (every run before issue 18's fix) centres each number's range instead, and the
+# "sigmoid" (the first runs' map) centres each number's range instead, and the
 # baseline's k_t, k_theta and translational compliance sit on its flat edge there.
 ACTION_MAPS = ("centred", "sigmoid")
 
@@ -78,7 +79,7 @@ class TrainConfig:
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
         for s in shapes:
             if s not in SHAPES:
-                raise ValueError(f"unknown shape {s!r}: choose from {', '.join(SHAPES)}")
+                raise UsageError(f"unknown shape {s!r}: choose from {', '.join(SHAPES)}")
         object.__setattr__(self, "shapes", shapes)
         object.__setattr__(self, "size_mm", tuple(float(s) for s in self.size_mm))
         object.__setattr__(self, "policy_hidden", tuple(int(h) for h in self.policy_hidden))
@@ -87,18 +88,18 @@ class TrainConfig:
                            ("sensor_delay_offset", int)):  # fmt: skip
             object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
         if self.prior not in PRIORS:
-            raise ValueError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
+            raise UsageError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
         if self.action_map not in ACTION_MAPS:
-            raise ValueError(
+            raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
         if self.engine not in ENGINES:
-            raise ValueError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
+            raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):
             value = getattr(self, name)
             if not isinstance(value, int) or value <= 0:
                 flag = "--" + name.replace("_", "-")
-                raise ValueError(f"{flag} must be a positive integer, got {value}")
+                raise UsageError(f"{flag} must be a positive integer, got {value}")
         for name in (
             "time_limit_s",
             "learning_rate",
@@ -108,11 +109,11 @@ class TrainConfig:
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value}")
+                raise UsageError(f"{name} must be a positive number, got {value}")
         if not (math.isfinite(self.entropy_cost) and self.entropy_cost >= 0):
-            raise ValueError(f"entropy_cost must be >= 0, got {self.entropy_cost}")
+            raise UsageError(f"entropy_cost must be >= 0, got {self.entropy_cost}")
         if self.num_envs % self.num_minibatches:
-            raise ValueError(
+            raise UsageError(
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
@@ -152,7 +153,7 @@ class TrainConfig:
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = set(data) - names
         if unknown:
-            raise ValueError(f"config.json has unknown fields {sorted(unknown)}")
+            raise UsageError(f"config.json has unknown fields {sorted(unknown)}")
         return cls(**{"action_map": "sigmoid", **data})  # written before the field existed
 
     def dumps(self) -> str:

@@ -20,6 +20,7 @@ from pathlib import Path
 import orbax.checkpoint as ocp
 
 from mjx_peg import cli
+from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import MANIFEST_FILE, POLICY_FILE
 
@@ -76,7 +77,7 @@ class RunDir:
         try:
             return TrainConfig.from_json(json.loads(self.config_path.read_text()))
         except (OSError, ValueError, TypeError) as e:
-            raise ValueError(
+            raise UsageError(
                 f"{self.path} is not a training run ({self.config_path.name}: {e})"
             ) from None
 
@@ -87,11 +88,11 @@ class RunDir:
         if init_from is not None:
             cli.check_apart(self.path, {"--init-from": init_from})
         if self.path.exists() and not self.path.is_dir():
-            raise ValueError(f"--out {self.path} exists and is not a directory")
+            raise UsageError(f"--out {self.path} exists and is not a directory")
         if not self.path.is_dir() or not any(self.path.iterdir()):
             return "new"
         if not self.config_path.is_file():
-            raise ValueError(
+            raise UsageError(
                 f"--out {self.path} is not empty and holds no training run; choose another "
                 "directory (--force replaces only a training run)"
             )
@@ -99,7 +100,7 @@ class RunDir:
         if force:
             return "replace"
         if self.is_finished():
-            raise ValueError(
+            raise UsageError(
                 f"--out {self.path} holds a finished run; pass --force to move it aside and "
                 "start over"
             )
@@ -107,7 +108,7 @@ class RunDir:
             changed = sorted(
                 k for k, v in config.to_json().items() if previous.to_json().get(k) != v
             )
-            raise ValueError(
+            raise UsageError(
                 f"--out {self.path} holds an unfinished run with a different config "
                 f"({', '.join(changed)} differ); rerun it with the same options, or pass "
                 "--force to move it aside and start over"
@@ -160,7 +161,7 @@ class RunDir:
                 limit = trials if column == "trials" else trials - 1
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
             except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
-                raise ValueError(
+                raise UsageError(
                     f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
                     "aside (--force) to start over"
                 ) from None

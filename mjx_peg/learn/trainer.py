@@ -20,6 +20,8 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 from mjx_peg import cli
+from mjx_peg.engines import interrupt
+from mjx_peg.errors import UsageError
 from mjx_peg.learn import ppo, restore_noise
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
@@ -71,13 +73,13 @@ def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=N
         flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
         leaves = [np.asarray(flat[k]) for k in sorted(flat)]
         if len(leaves) != len(jax.tree.leaves(template)):
-            raise ValueError(f"{len(leaves)} arrays, the run's state has another number")
+            raise UsageError(f"{len(leaves)} arrays, the run's state has another number")
         state = jax.tree.unflatten(jax.tree.structure(template), leaves)
     except Exception as e:  # a corrupt or truncated checkpoint can fail anywhere inside Orbax
         text = cli.message(e).split(" [tensorstore_spec=")[0]
         text = text if len(text) <= 300 else text[:297] + "..."
         where = Path(manager.directory) / str(step)
-        raise ValueError(
+        raise UsageError(
             f"checkpoint {where} is corrupt or truncated ({type(e).__name__}: {text})"
         ) from None
     return state
@@ -94,17 +96,17 @@ def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.Training
     """Start from another run's networks and observation statistics (fresh optimizer)."""
     source = RunDir(config.init_from)
     if not source.path.is_dir():
-        raise ValueError(f"--init-from {source.path} is not a directory")
+        raise UsageError(f"--init-from {source.path} is not a directory")
     other = source.read_config()
     if other.policy_hidden != config.policy_hidden or other.value_hidden != config.value_hidden:
-        raise ValueError(
+        raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
             f"this run {config.policy_hidden}/{config.value_hidden}"
         )
     manager = source.checkpoints()
     try:
         if manager.latest_step() is None:
-            raise ValueError(f"--init-from {source.path} holds no checkpoint")
+            raise UsageError(f"--init-from {source.path} holds no checkpoint")
         restored = _restore(manager, ppo.init_state(other, ppo.make_networks(other)))
     finally:
         manager.close()
@@ -151,7 +153,7 @@ def train(
     `out` is moved aside (`note` is told where), never deleted, and nothing but a run is."""
     devices = jax.device_count()
     if config.num_envs % (devices * config.num_minibatches):
-        raise ValueError(
+        raise UsageError(
             f"--num-envs {config.num_envs} must be a multiple of {devices} devices x "
             f"{config.num_minibatches} minibatches"
         )
@@ -201,11 +203,22 @@ def train(
 
         bar = tqdm(total=total, initial=int(state.trials), unit="trial", dynamic_ncols=True)
     last = {"success": np.zeros(1), "return": np.zeros(1)}
-    recent = np.zeros(0)
+    recent = np.zeros(0)  # the returns of the last 100 trials, those of a resumed run's first
+    if int(state.trials) and run.trials_path.is_file():
+        from mjx_peg.learn.curves import read_table
+
+        recent = np.asarray(read_table(run.trials_path)["return"][-100:], dtype=np.float64)
+    saved, recorded = int(state.iteration), state
     try:
         while int(state.iteration) < config.iterations:
             t0 = time.monotonic()
-            replicated, trials, metrics = step(replicated)
+            with interrupt.on_sigint():  # Ctrl-C stops the iteration's trials at once
+                try:
+                    replicated, trials, metrics = step(replicated)
+                except Exception:  # the host callback's KeyboardInterrupt, as JAX raises it
+                    if interrupt.requested():
+                        raise KeyboardInterrupt from None
+                    raise
             # [local devices, all devices, trials per device]: every local copy is the same
             trials = {k: v.reshape(-1) for k, v in ppo.unreplicate(trials).items()}
             metrics = ppo.unreplicate(metrics)
@@ -213,6 +226,10 @@ def train(
             now = time.monotonic()
             wall = wall0 + now - start
             state = state.replace(wall_s=np.asarray(wall, np.float32))
+            # The next iteration starts from host arrays again, as the first did: fed its own
+            # outputs (other weak types), the pmapped step would compile a second time (~6 s
+            # here, during which Ctrl-C cannot act).
+            replicated = ppo.replicate(state)
             n = int(state.trials)
             first = n - config.num_envs
             succ = trials["success"] > 0.5
@@ -246,12 +263,13 @@ def train(
             )
             if primary:
                 run.append(*row)
+            recorded = state  # its trials are in trials.csv: what an interrupt keeps
             last = trials
             recent = np.concatenate([recent, trials["return"]])[-100:]
             finished = int(state.iteration) >= config.iterations
             if finished or now - last_save >= checkpoint_every_s:
                 _save(manager, state)
-                last_save = time.monotonic()
+                saved, last_save = int(state.iteration), time.monotonic()
             if bar is not None:
                 bar.update(config.num_envs)
                 bar.set_postfix_str(
@@ -260,6 +278,10 @@ def train(
             done_iterations += 1
             if stop_after_iterations is not None and done_iterations >= stop_after_iterations:
                 break
+    except KeyboardInterrupt:  # keep every finished iteration: only the trials in flight are lost
+        if primary and int(recorded.iteration) > saved:
+            _save(manager, recorded)
+        raise
     finally:
         if bar is not None:
             bar.close()
@@ -267,10 +289,6 @@ def train(
     finished = int(state.iteration) >= config.iterations
     if finished and primary:
         _export(run, config, state, finished=True)
-    if recent.size == 0:
-        from mjx_peg.learn.curves import read_table
-
-        recent = np.asarray(read_table(run.trials_path)["return"][-100:])
     return TrainSummary(
         run_dir=run.path,
         trials=int(state.trials),
@@ -289,7 +307,7 @@ def load_state(run_dir) -> tuple[TrainConfig, ppo.TrainingState]:
     manager = run.checkpoints()
     try:
         if manager.latest_step() is None:
-            raise ValueError(f"{run.path} holds no checkpoint")
+            raise UsageError(f"{run.path} holds no checkpoint")
         template = ppo.init_state(config, ppo.make_networks(config))
         return config, _restore(manager, template)
     finally:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.policy import network, observation
 from mjx_peg.skill import params
 
@@ -32,7 +33,7 @@ MANIFEST_FILE = "manifest.json"
 ACTIVATION = "swish"
 
 
-class PolicyError(ValueError):
+class PolicyError(UsageError):
     """A policy file is missing, truncated or inconsistent with its manifest."""
 
 
@@ -177,18 +178,22 @@ def load_policy(path) -> Policy:
     try:
         shapes = [tuple(s) for s in manifest["network"]["layers"]]
         names = manifest["observation"]["names"]
-        if names != list(observation.OBS_NAMES):
-            raise PolicyError(f"{manifest_path} observation {names} is not {observation.OBS_NAMES}")
-        if manifest["network"]["activation"] != ACTIVATION:
-            raise PolicyError(f"{manifest_path}: unsupported activation")
+        activation = manifest["network"]["activation"]
+        centre = _map_centre(manifest, manifest_path)
+    except (KeyError, TypeError) as e:
+        raise PolicyError(f"{manifest_path} lacks {e} (not a complete policy manifest)") from None
+    if names != list(observation.OBS_NAMES):
+        raise PolicyError(f"{manifest_path} observation {names} is not {observation.OBS_NAMES}")
+    if activation != ACTIVATION:
+        raise PolicyError(f"{manifest_path}: unsupported activation")
+    try:
         layers = tuple(
             (arrays[f"layer{i}_kernel"], arrays[f"layer{i}_bias"]) for i in range(len(shapes))
         )
         obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
-        centre = _map_centre(manifest, manifest_path)
-    except (KeyError, TypeError) as e:
+    except KeyError as e:
         raise PolicyError(
-            f"{run_dir}: policy.npz and manifest.json disagree (missing {e})"
+            f"{npz_path} lacks the array {e} that {manifest_path.name} names"
         ) from None
     width = observation.OBS_SIZE
     for i, ((kernel, bias), shape) in enumerate(zip(layers, shapes, strict=True)):

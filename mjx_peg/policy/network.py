@@ -14,12 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from mjx_peg._xp import namespace_of
 from mjx_peg.skill.params import (
     controller_from_action,
     controller_from_centred_action,
     vector_from_controller,
 )
-from mjx_peg.world.rotations import namespace_of
 
 
 def swish(x, xp):

@@ -22,8 +22,8 @@ imports neither numpy nor jax at module level.
 
 from __future__ import annotations
 
+from mjx_peg._xp import namespace_of
 from mjx_peg.world.constants import SHAPES, SYMMETRY
-from mjx_peg.world.rotations import namespace_of
 
 WORKSPACE_CENTRE = (0.4, 0.0)  # m
 POSITION_SCALE = 0.3  # m

@@ -27,6 +27,7 @@ import numpy as np
 
 from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
@@ -110,16 +111,22 @@ def _check_host(text: str) -> None:
     except ValueError:
         host = r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,62})(\.[A-Za-z0-9-]{1,63})*"
         if not re.fullmatch(host, text):
-            raise ValueError(f"--robot-ip: not an IP address or host name: {text!r}") from None
+            raise UsageError(f"--robot-ip: not an IP address or host name: {text!r}") from None
 
 
-def command_steps(hz: float) -> int:
-    """Physics steps per command for a rate that divides the physics rate; ValueError if not."""
+def command_steps(hz: float, time_limit: float = math.inf) -> int:
+    """Physics steps per command for a rate that divides the physics rate and whose period fits
+    in `time_limit` (s); UsageError if not."""
     if not (math.isfinite(hz) and 0 < hz <= PHYSICS_HZ):
-        raise ValueError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {hz:g}")
+        raise UsageError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {hz:g}")
+    if 1.0 / hz > time_limit:  # also every rate too small to divide by (5e-324 Hz)
+        raise UsageError(
+            f"--command-hz {hz:g} commands every {1.0 / hz:g} s, longer than the --time-limit "
+            f"of {time_limit:g} s: give at least {1.0 / time_limit:g} Hz"
+        )
     steps = round(PHYSICS_HZ / hz)
     if abs(PHYSICS_HZ / steps - hz) > 1e-3:
-        raise ValueError(
+        raise UsageError(
             f"--command-hz must divide the {PHYSICS_HZ:g} Hz physics "
             f"(500, 250, 166.7, 125, 100, ...), got {hz:g}"
         )
@@ -127,12 +134,12 @@ def command_steps(hz: float) -> int:
 
 
 def _setup(args):
-    steps = command_steps(args.command_hz)
+    steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
     if not args.policy:
-        raise ValueError("--policy must be a run directory or baseline, got an empty string")
+        raise UsageError("--policy must be a run directory or baseline, got an empty string")
     if args.policy != "baseline" and not Path(args.policy).exists():
-        raise ValueError(f"--policy {args.policy}: no such run directory")
+        raise UsageError(f"--policy {args.policy}: no such run directory")
     return task, steps
 
 
@@ -153,13 +160,13 @@ def main(argv=None) -> int:
         if args.robot_ip is not None:
             _check_host(args.robot_ip)
         if not real:
-            raise ValueError("--hole and --shadow need --robot-ip, --rehearse or --dry-run")
+            raise UsageError("--hole and --shadow need --robot-ip, --rehearse or --dry-run")
         if args.hole is None:
-            raise ValueError("--robot-ip, --rehearse and --dry-run need --hole X,Y,YAW")
+            raise UsageError("--robot-ip, --rehearse and --dry-run need --hole X,Y,YAW")
         if args.robot_ip and args.rehearse:
-            raise ValueError("--rehearse runs on the simulated UR5e: drop --robot-ip")
+            raise UsageError("--rehearse runs on the simulated UR5e: drop --robot-ip")
         if args.dry_run and (args.shadow or args.rehearse):
-            raise ValueError("--dry-run connects to nothing: drop --shadow and --rehearse")
+            raise UsageError("--dry-run connects to nothing: drop --shadow and --rehearse")
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)

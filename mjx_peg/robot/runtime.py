@@ -37,6 +37,7 @@ from mjx_peg.engines.trial import (
     settle_start,
     settle_update,
 )
+from mjx_peg.errors import UsageError
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import Policy, load_policy
 from mjx_peg.robot.arm import Arm, ArmState
@@ -71,14 +72,14 @@ class HoleEstimate:
 
     def __post_init__(self):
         if self.shape not in constants.SHAPES:
-            raise ValueError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
+            raise UsageError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
         for name in ("x", "y", "yaw", "size"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(
+                raise UsageError(
                     f"hole {name} must be a finite number, got {getattr(self, name)!r}"
                 )
         if self.size <= 0:
-            raise ValueError(f"hole size must be positive (m), got {self.size!r}")
+            raise UsageError(f"hole size must be positive (m), got {self.size!r}")
 
     @classmethod
     def of_trial(cls, specs, index: int) -> HoleEstimate:
@@ -249,7 +250,7 @@ def run_skill(
     does a skill that has settled (`SkillRuntime.settled`: stopped "settled", a failure)."""
     limit = runtime.config.time_limit_s if time_limit_s is None else time_limit_s
     if not (math.isfinite(limit) and limit > 0):
-        raise ValueError(f"the time limit must be a positive number of seconds, got {limit!r}")
+        raise UsageError(f"the time limit must be a positive number of seconds, got {limit!r}")
     done = done or runtime.inserted
     log = {"t": [], "tcp_pos": [], "wrench": [], "torque": []}
     stopped, success = "", False

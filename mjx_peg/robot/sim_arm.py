@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from mjx_peg.engines.trial import TrialConfig, chatter_of, is_success, sensor_params
+from mjx_peg.errors import UsageError
 from mjx_peg.robot.arm import ArmState
 from mjx_peg.skill import sensor
 from mjx_peg.world import constants, scene
@@ -37,9 +38,9 @@ class SimArm:
         config: TrialConfig | None = None,
     ):
         if type(command_steps) is not int or command_steps < 1:
-            raise ValueError(f"command_steps must be a positive integer, got {command_steps!r}")
+            raise UsageError(f"command_steps must be a positive integer, got {command_steps!r}")
         if not 0 <= index < len(specs):
-            raise ValueError(f"trial index {index} is outside the {len(specs)} trials")
+            raise UsageError(f"trial index {index} is outside the {len(specs)} trials")
         s = specs.take([index])
         self.board_pos, self.size = s.board_pos[0], float(s.size[0])
         self.model = m = scene.load_model(constants.SHAPES[int(s.shape_id[0])], self.size)

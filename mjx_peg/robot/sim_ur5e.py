@@ -36,6 +36,7 @@ import time
 import mujoco
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.robot.arm_model import gravity_torque
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.world import constants
@@ -60,7 +61,7 @@ class SimulatedUR5e:
         realtime: bool = False,
     ):
         if sim.command_steps != 1:
-            raise ValueError("the simulated UR5e takes direct torques at 500 Hz: command_steps=1")
+            raise UsageError("the simulated UR5e takes direct torques at 500 Hz: command_steps=1")
         self.sim = sim
         self.payload_mass, self.payload_cog = float(payload_mass), list(payload_cog)
         self.tcp_offset = [float(v) for v in tcp_offset]
@@ -87,7 +88,7 @@ class SimulatedUR5e:
         """Misbehave from command period `at` on, in every `every`-th period (see the module
         docstring)."""
         if kind not in FAULTS:
-            raise ValueError(f"unknown fault {kind!r}: choose from {', '.join(FAULTS)}")
+            raise UsageError(f"unknown fault {kind!r}: choose from {', '.join(FAULTS)}")
         self.faults[kind] = (at, value, every)
 
     def _active(self, kind: str) -> float | None:

@@ -34,6 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.robot.arm import ArmState
 from mjx_peg.robot.arm_model import ArmModel, ModelError
 from mjx_peg.robot.runtime import SafetyStop
@@ -51,11 +52,11 @@ SAFETY_MODES = {1: "normal", 2: "reduced", 3: "protective stop", 4: "recovery",
 STOP_DECELERATION = 2.0  # rad/s^2: stopJ after the skill, the leading joint's deceleration
 
 
-class RobotNotReady(ValueError):
+class RobotNotReady(UsageError):
     """The robot is not set up for the skill; nothing was commanded (one line says why)."""
 
 
-class MissingExtra(ValueError):
+class MissingExtra(UsageError):
     """ur_rtde is not installed."""
 
 

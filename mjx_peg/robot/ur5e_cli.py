@@ -24,6 +24,7 @@ import numpy as np
 
 from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
+from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRun, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
@@ -44,9 +45,9 @@ def parse_hole(text: str) -> tuple[float, float, float]:
     try:
         x, y, yaw = (float(p) for p in parts)
     except ValueError:
-        raise ValueError(f"--hole must be X,Y,YAW in mm, mm, deg, got {text!r}") from None
+        raise UsageError(f"--hole must be X,Y,YAW in mm, mm, deg, got {text!r}") from None
     if not all(math.isfinite(v) for v in (x, y, yaw)):
-        raise ValueError(f"--hole must be finite numbers, got {text!r}")
+        raise UsageError(f"--hole must be finite numbers, got {text!r}")
     return x / 1000.0, y / 1000.0, math.radians(yaw)
 
 
@@ -66,7 +67,7 @@ def plan(hole: HoleEstimate, vector: np.ndarray, config: TrialConfig) -> dict:
     q_goal, ok_goal = feasible_configuration(goal_pos, goal_rot, bound)
     where = f"the hole at ({1000 * hole.x:.0f}, {1000 * hole.y:.0f}) mm"
     if not (bool(ok_start) and bool(ok_goal)):
-        raise ValueError(
+        raise UsageError(
             f"{where} is out of the UR5e's reach with the tool down (no IK within the joint "
             f"limits and condition number {bound:g}, at the start 60 mm above it or at the goal)"
         )
@@ -231,7 +232,7 @@ def timing(arm: UR5eArm, n: int) -> str:
 def run(args, prog: str) -> int:
     """The real-arm path of `python -m mjx_peg.robot` (flags parsed there)."""
     if args.command_hz != 1.0 / PERIOD_S:
-        raise ValueError(
+        raise UsageError(
             "--robot-ip runs direct torque control at the UR5e's 500 Hz only: "
             "leave --command-hz at 500"
         )
@@ -240,11 +241,11 @@ def run(args, prog: str) -> int:
     policy = args.policy
     if policy != "baseline":
         if not Path(policy).exists():
-            raise ValueError(f"--policy {policy}: no such run directory")
+            raise UsageError(f"--policy {policy}: no such run directory")
         policy = load_policy(policy)
         shapes = trained_shapes(policy)
         if shapes is not None and args.shape not in shapes:
-            raise ValueError(
+            raise UsageError(
                 f"--policy {args.policy} was trained on {', '.join(shapes)}, not {args.shape}: "
                 "transfer it first (train.py --preset transfer --init-from ...)"
             )

@@ -1,6 +1,6 @@
 """The hand-tuned parameter set: the reference a learned policy must beat.
 
-Re-tuned for credible contact (issue 18: the sensed wrench, the compliance damping, the 2 s
+Tuned for credible contact (the sensed wrench, the compliance damping, the 2 s
 approach, the protective stop). The first baseline (k = 300, compliance 1e-3 m/N and
 0.05 rad/(N m), a +-3e-3 m/(N m) moment-to-shift coupling) inserted by chattering: its coupling
 loop had a gain of 2 along z and 12 in a rotation-translation mode through a rigid contact, so the

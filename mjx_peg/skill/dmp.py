@@ -39,7 +39,8 @@ import dataclasses
 import importlib
 import math
 
-from mjx_peg.world.rotations import namespace_of
+from mjx_peg._xp import namespace_of
+from mjx_peg.errors import UsageError
 
 WIDTH_PER_GAP = 0.3  # basis width sigma_i over the distance between neighbouring centres
 
@@ -58,11 +59,11 @@ class DMPConfig:
 
     def __post_init__(self):
         if not (isinstance(self.n_basis, int) and self.n_basis >= 2):
-            raise ValueError(f"DMPConfig.n_basis must be an integer >= 2, got {self.n_basis!r}")
+            raise UsageError(f"DMPConfig.n_basis must be an integer >= 2, got {self.n_basis!r}")
         for name in ("alpha_s", "tau", "k_ref", "duration"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"DMPConfig.{name} must be a positive number, got {value!r}")
+                raise UsageError(f"DMPConfig.{name} must be a positive number, got {value!r}")
 
     @property
     def phase_span(self) -> float:

@@ -14,7 +14,8 @@ module imports neither numpy nor jax.
 
 from __future__ import annotations
 
-from mjx_peg.world.rotations import namespace_of, rotvec_from_matrix
+from mjx_peg._xp import namespace_of
+from mjx_peg.world.rotations import rotvec_from_matrix
 
 
 def _matvec(mat, vec):

@@ -4,7 +4,7 @@ The policy outputs an unbounded action in R^38; a map squashes it into a valid c
 section 3.3: positive gains, compliance within physical ranges), for every input including +-1e6
 (tanh saturates, nothing overflows). Two maps, both onto the ranges below:
 
-- `controller_from_centred_action` (training's default since issue 18): action 0 is a given
+- `controller_from_centred_action` (training's default): action 0 is a given
   centre (the baseline), and each number leaves it in both directions with the slope the
   sigmoid map has in the middle of its range, approaching the range's edges like tanh.
 - `controller_from_action` (the sigmoid map, every run before): action 0 is the middle of each
@@ -60,7 +60,8 @@ import importlib
 import math
 from typing import NamedTuple
 
-from mjx_peg.world.rotations import namespace_of
+from mjx_peg._xp import namespace_of
+from mjx_peg.errors import UsageError
 
 N_PARAMS = 38
 OFF_DIAGONAL_FRACTION = 0.5
@@ -101,11 +102,11 @@ class ParamRanges:
         for name in ("k_t", "k_theta"):
             lo, hi = getattr(self, name)
             if not (0 < lo < hi and math.isfinite(hi)):
-                raise ValueError(f"ParamRanges.{name} must satisfy 0 < low < high, got {lo, hi}")
+                raise UsageError(f"ParamRanges.{name} must satisfy 0 < low < high, got {lo, hi}")
         for name in ("trans_compliance_max", "rot_compliance_max", "off_diagonal_fraction"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"ParamRanges.{name} must be a positive number, got {value!r}")
+                raise UsageError(f"ParamRanges.{name} must be a positive number, got {value!r}")
 
     def compliance_bound(self) -> tuple[tuple[float, ...], ...]:
         """6x6 bound b: C[i,i] in [0, b[i][i]], C[i,j] in [-b[i][j], b[i][j]] for i != j."""
@@ -139,7 +140,7 @@ def _inverse_tanh(u, xp):
 def _split_action(action, xp):
     """(...,), (...,), (..., 6, 6) parts of a (..., 38) vector."""
     if action.shape[-1] != N_PARAMS:
-        raise ValueError(f"expected a last axis of {N_PARAMS}, got shape {tuple(action.shape)}")
+        raise UsageError(f"expected a last axis of {N_PARAMS}, got shape {tuple(action.shape)}")
     shape = tuple(action.shape[:-1])
     return action[..., 0], action[..., 1], xp.reshape(action[..., 2:], shape + (6, 6))
 
@@ -212,13 +213,13 @@ def check_centre(centre, ranges: ParamRanges = DEFAULT_RANGES):
     np = importlib.import_module("numpy")
     centre = np.asarray(centre, dtype=np.float64)
     if centre.shape != (N_PARAMS,) or not np.all(np.isfinite(centre)):
-        raise ValueError(f"the map's centre must be {N_PARAMS} finite numbers")
+        raise UsageError(f"the map's centre must be {N_PARAMS} finite numbers")
     if np.any(centre[:2] <= 0):
-        raise ValueError("the map's centre has a stiffness <= 0")
+        raise UsageError("the map's centre has a stiffness <= 0")
     u = _to_unit(centre, ranges, np)
     if not np.all((u > 0) & (u < 1)):
         names = [PARAM_NAMES[i] for i in np.flatnonzero(~((u > 0) & (u < 1)))]
-        raise ValueError(f"the map's centre is not strictly inside the ranges at {names}")
+        raise UsageError(f"the map's centre is not strictly inside the ranges at {names}")
     return centre
 
 
@@ -231,7 +232,7 @@ def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT
     u = u0 + (1 - u0) tanh(s a / (1 - u0)) for a >= 0, u0 + u0 tanh(s a / u0) for a < 0.
     The sigmoid map puts the centre of its sensitivity in the middle of each range; a prior near
     an edge (k = 900 of [10, 1000] sits at sigmoid 0.977) then moves ~20 times less for the same
-    exploration, and PPO started there barely moves it (issue 18).
+    exploration, and PPO started there barely moves it (docs/credible_contact.md).
     """
     xp = namespace_of(action)
     _split_action(action, xp)  # checks the last axis (38)
@@ -311,12 +312,12 @@ def stiffness_from_compliance(compliance, max_condition: float = 1e12):
     np = importlib.import_module("numpy")
     c = np.asarray(compliance, dtype=np.float64)
     if c.shape[-2:] != (6, 6):
-        raise ValueError(f"compliance must have shape (..., 6, 6), got {c.shape}")
+        raise UsageError(f"compliance must have shape (..., 6, 6), got {c.shape}")
     if not np.all(np.isfinite(c)):
-        raise ValueError("compliance has NaN or infinite entries")
+        raise UsageError("compliance has NaN or infinite entries")
     cond = np.linalg.cond(c) if c.size else np.zeros(c.shape[:-2])
     if np.any(~np.isfinite(cond) | (cond > max_condition)):
-        raise ValueError(
+        raise UsageError(
             f"compliance is singular (condition number {np.max(cond):.3g} > {max_condition:.3g}):"
             " an infinitely stiff direction has no finite K_c"
         )

@@ -54,7 +54,8 @@ import dataclasses
 import math
 from typing import NamedTuple
 
-from mjx_peg.world.rotations import namespace_of
+from mjx_peg._xp import namespace_of
+from mjx_peg.errors import UsageError
 
 # Counter streams of the hash: noise of sample j, axis i uses counters 2 (6 j + i) and +1.
 _BIAS_STREAM = 0x68E31DA4  # xor-ed into the seed for the per-trial bias
@@ -78,19 +79,19 @@ class SensorConfig:
         for name in ("rate_hz", "cutoff_hz"):
             value = getattr(self, name)
             if not (value > 0 and not math.isnan(value)):
-                raise ValueError(f"SensorConfig.{name} must be positive, got {value!r}")
+                raise UsageError(f"SensorConfig.{name} must be positive, got {value!r}")
         if not math.isfinite(self.rate_hz):
-            raise ValueError(f"SensorConfig.rate_hz must be finite, got {self.rate_hz!r}")
+            raise UsageError(f"SensorConfig.rate_hz must be finite, got {self.rate_hz!r}")
         for name in ("force_noise", "torque_noise", "force_bias", "torque_bias"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"SensorConfig.{name} must be a number >= 0, got {value!r}")
+                raise UsageError(f"SensorConfig.{name} must be a number >= 0, got {value!r}")
         for name in ("delay_steps", "max_delay_steps"):
             value = getattr(self, name)
             if not (isinstance(value, int) and not isinstance(value, bool) and value >= 0):
-                raise ValueError(f"SensorConfig.{name} must be an integer >= 0, got {value!r}")
+                raise UsageError(f"SensorConfig.{name} must be an integer >= 0, got {value!r}")
         if self.delay_steps > self.max_delay_steps:
-            raise ValueError(
+            raise UsageError(
                 f"SensorConfig.delay_steps ({self.delay_steps}) exceeds max_delay_steps "
                 f"({self.max_delay_steps})"
             )

@@ -33,8 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 
-class CalibrationError(ValueError):
+
+class CalibrationError(UsageError):
     """A calibration file or dict that cannot be used (one line says why)."""
 
 

@@ -23,6 +23,7 @@ import json
 from pathlib import Path
 
 from mjx_peg import cli
+from mjx_peg.errors import UsageError
 
 PROG = "mjx-peg-vision"
 DEFAULT_MODEL = Path("runs/vision/model")
@@ -118,7 +119,7 @@ def _prepare_or_move(prepare, other: type[Exception], out: Path, config, force: 
         prepare(out, config)
     except other as exc:
         if not force:
-            raise ValueError(f"{exc}: choose another --out, the same options, or --force") from None
+            raise UsageError(f"{exc}: choose another --out, the same options, or --force") from None
         cli.note(PROG, f"--force: moved {out} aside to {cli.move_aside(out)}")
         prepare(out, config)
 
@@ -132,7 +133,7 @@ def _render(args) -> str:
         try:
             sizes.append(float(s))
         except ValueError:
-            raise ValueError(f"--sizes must be numbers of mm (of 25, 50, 60), got {s!r}") from None
+            raise UsageError(f"--sizes must be numbers of mm (of 25, 50, 60), got {s!r}") from None
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
@@ -211,17 +212,17 @@ def _act(args) -> str:
     shapes = _csv(args.shapes)
     for s in shapes:
         if s not in ("circle", "square", "triangle"):
-            raise ValueError(f"unknown shape {s!r}: choose from circle, square, triangle")
+            raise UsageError(f"unknown shape {s!r}: choose from circle, square, triangle")
     if not shapes or len(set(shapes)) != len(shapes):
-        raise ValueError("--shapes must name distinct shapes of circle, square, triangle")
+        raise UsageError("--shapes must name distinct shapes of circle, square, triangle")
     if args.size not in SIZES_MM:
-        raise ValueError(
+        raise UsageError(
             f"--size must be a size the localizer knows (25, 50, 60 mm), got {args.size:g}"
         )
     if not args.policy:
-        raise ValueError("--policy must be a run directory or baseline, got an empty string")
+        raise UsageError("--policy must be a run directory or baseline, got an empty string")
     if args.policy != "baseline" and not Path(args.policy).exists():
-        raise ValueError(f"--policy {args.policy}: no such run directory")
+        raise UsageError(f"--policy {args.policy}: no such run directory")
     cli.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
     from mjx_peg.vision.localizer import Localizer

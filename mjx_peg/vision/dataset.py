@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import cli
+from mjx_peg.errors import UsageError
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.randomize import (
     CONDITIONS,
@@ -45,7 +46,7 @@ from mjx_peg.world import constants
 SCHEMA = "mjx-peg-vision-split"
 
 
-class OtherSplit(ValueError):
+class OtherSplit(UsageError):
     """--out holds something else than this split (another config, or not a split)."""
 
 
@@ -145,12 +146,12 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
 
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"image {path} does not exist")
+        raise UsageError(f"image {path} does not exist")
     try:
         with Image.open(path) as im:
             return np.asarray(im.convert("RGB"), dtype=np.uint8)
     except (OSError, UnidentifiedImageError):
-        raise ValueError(f"cannot read image {path}: not an image file") from None
+        raise UsageError(f"cannot read image {path}: not an image file") from None
 
 
 def _json_write(path: Path, doc: dict) -> None:
@@ -171,18 +172,18 @@ class SplitConfig:
         object.__setattr__(self, "shapes", tuple(self.shapes))
         object.__setattr__(self, "sizes_mm", tuple(float(s) for s in self.sizes_mm))
         if not self.shapes or not set(self.shapes) <= set(SHAPES):
-            raise ValueError(f"shapes must be some of {', '.join(SHAPES)}, got {self.shapes}")
+            raise UsageError(f"shapes must be some of {', '.join(SHAPES)}, got {self.shapes}")
         if not self.sizes_mm or not set(self.sizes_mm) <= set(SIZES_MM):
             sizes = ", ".join(f"{s:g}" for s in SIZES_MM)
-            raise ValueError(f"sizes must be some of {sizes} mm, got {self.sizes_mm}")
+            raise UsageError(f"sizes must be some of {sizes} mm, got {self.sizes_mm}")
         if self.condition not in CONDITIONS:
-            raise ValueError(
+            raise UsageError(
                 f"unknown condition {self.condition!r}: choose from {', '.join(CONDITIONS)}"
             )
         if self.count < 1 or self.seed < 0:
-            raise ValueError("count must be >= 1 and seed >= 0")
+            raise UsageError("count must be >= 1 and seed >= 0")
         if not (64 <= self.width <= 2048 and 64 <= self.height <= 2048):
-            raise ValueError("image width and height must lie in 64..2048 px")
+            raise UsageError("image width and height must lie in 64..2048 px")
 
     def to_json(self) -> dict:
         doc = {k: getattr(self, k) for k in ("count", "seed", "condition", "width", "height")}
@@ -245,7 +246,7 @@ def split_config(split_dir) -> SplitConfig:
     """The SplitConfig of a split directory (ValueError if it is not one)."""
     path = Path(split_dir) / MANIFEST
     if not path.is_file():
-        raise ValueError(f"{split_dir} holds no {MANIFEST}: not a vision split")
+        raise UsageError(f"{split_dir} holds no {MANIFEST}: not a vision split")
     try:
         doc = json.loads(path.read_text())
         if doc.get("schema") != SCHEMA:
@@ -255,7 +256,7 @@ def split_config(split_dir) -> SplitConfig:
         saved.setdefault("sizes_mm", list(SIZES_MM))
         return SplitConfig(**saved)
     except (OSError, ValueError, KeyError, TypeError):
-        raise ValueError(f"{path} is not a vision split manifest") from None
+        raise UsageError(f"{path} is not a vision split manifest") from None
 
 
 def split_items(split_dir) -> list[tuple[Path, dict]]:
@@ -266,7 +267,11 @@ def split_items(split_dir) -> list[tuple[Path, dict]]:
     for k in range(config.count):
         label_path = split_dir / f"{k:06d}.json"
         if label_path.is_file():
-            items.append((split_dir / f"{k:06d}.png", json.loads(label_path.read_text())))
+            try:
+                label = json.loads(label_path.read_text())
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise UsageError(f"{label_path} is not a label file ({exc})") from None
+            items.append((split_dir / f"{k:06d}.png", label))
     if not items:
-        raise ValueError(f"{split_dir} holds no rendered images yet")
+        raise UsageError(f"{split_dir} holds no rendered images yet")
     return items

@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from mjx_peg.world import constants
+
 OFFSET_SCALE = 0.01  # m: the regressor's dx, dy unit
-SIZES_MM = (25.0, 50.0, 60.0)  # the paper's sizes S: the size head's classes, in order
-# (the shape head's classes are world.constants.SHAPES, in order)
+# The size head's classes are world.constants.SIZES_MM, the shape head's SHAPES, in order.
+SIZES_MM = constants.SIZES_MM
 FINE_OUTPUTS = 12
 DETECTOR_HEAD = 3
 

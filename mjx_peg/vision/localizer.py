@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.robot.runtime import HoleEstimate
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
@@ -51,7 +52,7 @@ def default_workspace() -> dict:
     }
 
 
-class ModelError(ValueError):
+class ModelError(UsageError):
     """A model directory that cannot be loaded (one line says why)."""
 
 
@@ -182,7 +183,7 @@ class Localizer:
         """The hole in `image` (H, W, 3) uint8 taken by the camera `calib`."""
         image = np.asarray(image)
         if image.ndim != 3 or image.shape[2] != 3:
-            raise ValueError(f"the image must be H x W x 3 (RGB), got shape {image.shape}")
+            raise UsageError(f"the image must be H x W x 3 (RGB), got shape {image.shape}")
         refine = int(self.config.get("refine", 2) if refine is None else refine)
         coarse, score = self.detect(image, calib)
         centre = coarse

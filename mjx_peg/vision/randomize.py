@@ -38,6 +38,7 @@ import functools
 import math
 import xml.etree.ElementTree as ET
 
+from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 
 gl.choose_backend()  # before MuJoCo is first imported
@@ -214,7 +215,7 @@ def sample_view(
 ) -> dict:
     """Everything random about one image of `board` (JSON-able; `apply_view` writes it)."""
     if condition not in CONDITIONS:
-        raise ValueError(f"unknown condition {condition!r}: choose from {', '.join(CONDITIONS)}")
+        raise UsageError(f"unknown condition {condition!r}: choose from {', '.join(CONDITIONS)}")
     model = _compiled(board["shape"], float(board["size"]))
     pos0, mat0, fovy = nominal_camera(model)
     mount_pos = pos0 + rng.uniform(-CAMERA_MOUNT_M, CAMERA_MOUNT_M, 3)

@@ -29,11 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
 from mjx_peg.vision.localizer import SCHEMA, SCHEMA_VERSION, Localizer, default_workspace
 from mjx_peg.vision.views import ViewConfig, coarse_view, fine_view
+from mjx_peg.world.constants import SHAPES, SIZES_MM
 
 CONFIG_FILE, METRICS_FILE, CHECKPOINTS, CACHE = (
     "train_config.json",
@@ -308,7 +310,7 @@ def _unflat(template, flat):
 # --- the loop ------------------------------------------------------------------------------------
 
 
-class OtherModel(ValueError):
+class OtherModel(UsageError):
     """--out holds something else than this training run (another config, or not a model)."""
 
 
@@ -316,7 +318,12 @@ def prepare_out(out: Path, config: VisionTrainConfig) -> None:
     """Create --out with train_config.json, or check that it holds the same config."""
     path = out / CONFIG_FILE
     if path.is_file():
-        saved = json.loads(path.read_text())
+        try:
+            saved = json.loads(path.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise UsageError(f"{path} is not a localizer training config ({exc})") from None
+        if not isinstance(saved, dict):
+            raise UsageError(f"{path} is not a localizer training config")
         if saved != config.to_json():
             diff = [k for k in config.to_json() if saved.get(k) != config.to_json()[k]]
             raise OtherModel(
@@ -446,7 +453,7 @@ def train(
         "views": views.to_json(),
         "refine": config.refine,
         "workspace": default_workspace(),
-        "classes": {"shapes": ["circle", "square", "triangle"], "sizes_mm": [25, 50, 60]},
+        "classes": {"shapes": list(SHAPES), "sizes_mm": [int(s) for s in SIZES_MM]},
         "offset_scale_m": forward.OFFSET_SCALE,
         "train_config": config.to_json(),
         "train_data": str(Path(data_dir)),

@@ -11,6 +11,7 @@ import math
 # Cross-sections, in TrialSpec.shape_id order; rotational symmetry order of each (0: a circle,
 # whose yaw does not matter).
 SHAPES: tuple[str, ...] = ("circle", "square", "triangle")
+SIZES_MM: tuple[float, ...] = (25.0, 50.0, 60.0)  # the paper's sizes S (section 5)
 SYMMETRY: tuple[int, ...] = (0, 4, 3)
 HOLE_SCALE = {"circle": 1.03, "square": 1.08, "triangle": 1.08}  # hole size / peg size S
 CIRCLE_SIDES = 16  # sides of the round peg's prism (circumradius D/2)

@@ -17,6 +17,7 @@ import functools
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.world import constants
 from mjx_peg.world.rotations import rotvec_from_matrix, tool_down_rotation
 
@@ -62,7 +63,7 @@ def _rigid_inverse(T: np.ndarray) -> np.ndarray:
 def _check_q(q) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1:] != (6,):
-        raise ValueError(f"joint configuration must have shape (..., 6), got {q.shape}")
+        raise UsageError(f"joint configuration must have shape (..., 6), got {q.shape}")
     return q
 
 
@@ -161,7 +162,7 @@ def condition_number(
     elif block == "full":
         jac = np.concatenate([jac[..., :3, :] / length_scale, jac[..., 3:, :]], axis=-2)
     else:
-        raise ValueError(f"unknown block {block!r}: choose from position, full")
+        raise UsageError(f"unknown block {block!r}: choose from position, full")
     sv = np.linalg.svd(jac, compute_uv=False)
     with np.errstate(divide="ignore"):
         return sv[..., 0] / sv[..., -1]
@@ -269,7 +270,7 @@ def ik_tcp(
     pos = np.asarray(pos, dtype=np.float64)
     rot = np.asarray(rot, dtype=np.float64)
     if pos.shape[-1:] != (3,) or rot.shape[-2:] != (3, 3) or pos.shape[:-1] != rot.shape[:-2]:
-        raise ValueError(
+        raise UsageError(
             f"ik_tcp needs pos (..., 3) and rot (..., 3, 3), got {pos.shape}, {rot.shape}"
         )
     flange = pos - tool_length * rot[..., :, 2]

@@ -11,6 +11,7 @@ import os
 import pathlib
 import warnings
 
+from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 
 gl.choose_backend()
@@ -19,7 +20,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-class RenderError(ValueError):
+class RenderError(UsageError):
     """MuJoCo cannot render with this process's MUJOCO_GL (one line)."""
 
 
@@ -62,12 +63,12 @@ def render_rgb(
     width, height = int(width), int(height)
     max_w, max_h = int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
     if not (0 < width <= max_w and 0 < height <= max_h):
-        raise ValueError(
+        raise UsageError(
             f"image size {width}x{height} must be within the offscreen buffer {max_w}x{max_h}"
         )
     if isinstance(camera, str) and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera) < 0:
         names = [model.camera(i).name for i in range(model.ncam)]
-        raise ValueError(
+        raise UsageError(
             f"unknown camera {camera!r}: valid cameras are {', '.join(names) or 'none'}"
         )
     with _renderer(model, height, width) as renderer:

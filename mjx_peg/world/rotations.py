@@ -9,32 +9,10 @@ CONVENTIONS.md: quaternions are (w, x, y, z) and act as R(q) v = q v q*.
 
 from __future__ import annotations
 
-import importlib
-import types
+from mjx_peg._xp import namespace_of
 
 # Below this squared angle (rad^2) the Taylor branches are used; their error is O(angle^4) ~ 1e-16.
 _SMALL_ANGLE_SQ = 1e-8
-
-
-def namespace_of(*arrays) -> types.ModuleType:
-    """Array-API namespace shared by `arrays` (a non-NumPy one wins; Python scalars are skipped).
-
-    JAX arrays and tracers provide `__array_namespace__`; when NumPy and JAX arrays are mixed
-    (e.g. fitted NumPy weights with a traced phase) the JAX namespace is returned so the result
-    can be traced. With only Python scalars, NumPy is imported lazily.
-    """
-    found = None
-    for a in arrays:
-        getter = getattr(a, "__array_namespace__", None)
-        if getter is not None:
-            xp = getter()
-        elif type(a).__module__.split(".")[0] in ("jax", "jaxlib"):
-            xp = importlib.import_module("jax.numpy")
-        else:
-            continue
-        if found is None or found.__name__ == "numpy":
-            found = xp
-    return found if found is not None else importlib.import_module("numpy")
 
 
 def _vec_sq(v):

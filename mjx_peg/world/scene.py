@@ -50,16 +50,14 @@ search iterations, gravity on.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import dataclasses
 import functools
 import math
 import pathlib
-import sys
 import xml.etree.ElementTree as ET
 
-from mjx_peg import cli
+from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 
 gl.choose_backend()
@@ -102,13 +100,13 @@ def _vec(*xs: float) -> str:
 def _check(shape: str, size: float) -> tuple[str, float]:
     """Validated (shape, size) or ValueError with one line naming the valid values."""
     if shape not in SHAPES:
-        raise ValueError(f"unknown shape {shape!r}: valid shapes are {', '.join(SHAPES)}")
+        raise UsageError(f"unknown shape {shape!r}: valid shapes are {', '.join(SHAPES)}")
     try:
         size = float(size)
     except (TypeError, ValueError):
-        raise ValueError(f"size must be a finite number of metres > 0, got {size!r}") from None
+        raise UsageError(f"size must be a finite number of metres > 0, got {size!r}") from None
     if not (math.isfinite(size) and size > 0.0):
-        raise ValueError(f"size must be a finite number of metres > 0, got {size!r}")
+        raise UsageError(f"size must be a finite number of metres > 0, got {size!r}")
     return shape, size
 
 
@@ -498,41 +496,6 @@ def solve_site_pose(
     return q
 
 
-# --- CLI ----------------------------------------------------------------------------------------
-
-PROG = "mjx-peg-scene"
-
-
-def _parse(argv) -> argparse.Namespace:
-    parser = cli.Parser(
-        prog=PROG,
-        description="Write the scene MJCF for one (shape, size) and a rendered PNG of it.",
-    )
-    parser.add_argument("--shape", required=True, choices=SHAPES)
-    parser.add_argument(
-        "--size", required=True, type=cli.SIZE_MM, help="characteristic size S (D or L)"
-    )
-    parser.add_argument(
-        "--out", required=True, type=cli.nonempty_path, help="output directory (created if needed)"
-    )
-    parser.add_argument("--camera", default="overview", help="camera name (default: overview)")
-    parser.add_argument(
-        "--width", type=cli.integer(16, 1280), default=960, help="PNG width in px (default 960)"
-    )
-    parser.add_argument(
-        "--height", type=cli.integer(16, 960), default=720, help="PNG height in px (default 720)"
-    )
-    parser.add_argument(
-        "--force",
-        action="store_true",
-        help="replace the scene's .xml and .png in --out: the earlier ones are moved aside "
-        "(NAME.replaced-DATE-TIME)",
-    )
-    args = parser.parse_args(argv)
-    args.size_mm = args.size
-    return args
-
-
 def demo_pose(
     model: mujoco.MjModel, board_xy=(0.45, 0.1), board_yaw=0.3, tip_above=0.05
 ) -> mujoco.MjData:
@@ -544,37 +507,3 @@ def demo_pose(
     data.qpos[scene_ids(model).qpos_adr] = q
     mujoco.mj_forward(model, data)
     return data
-
-
-@cli.entry(PROG)
-def main(argv=None) -> int:
-    args = _parse(argv)
-    from mjx_peg.world import mujoco_log, render
-
-    mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
-    size = args.size_mm / 1000.0
-    stem = f"scene_{args.shape}_{args.size_mm:g}mm"
-    xml_path, png_path = args.out / f"{stem}.xml", args.out / f"{stem}.png"
-    # Everything is checked and made before --out is touched; nothing replaced without --force.
-    if args.out.is_dir() and not args.force:
-        cli.refuse_or_move([xml_path, png_path], False, PROG)
-    xml = build_mjcf(args.shape, size)
-    model = load_model(args.shape, size)
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
-        names = ", ".join(model.camera(i).name for i in range(model.ncam))
-        raise ValueError(f"unknown camera {args.camera!r}: valid cameras are {names}")
-    render.check_backend()
-    cli.prepare_dir(args.out)
-    cli.refuse_or_move([xml_path, png_path], args.force, PROG)
-    if gl.fallback_note():
-        cli.note(PROG, f"warning: {gl.fallback_note()}")
-    rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-    cli.write_atomic(xml_path, xml)
-    cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
-    print(xml_path)
-    print(png_path)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

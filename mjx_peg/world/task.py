@@ -17,6 +17,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from mjx_peg.errors import UsageError
 from mjx_peg.world import kinematics
 from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH, PEG_LENGTH, SHAPES
 from mjx_peg.world.rotations import matrix_from_rotvec, tool_down_rotation
@@ -28,7 +29,7 @@ def _number(name: str, value) -> float:
     try:
         return float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"TaskConfig.{name} must be a number, got {value!r}") from None
+        raise UsageError(f"TaskConfig.{name} must be a number, got {value!r}") from None
 
 
 def _range(name: str, value, lo_min: float = -math.inf, positive: bool = False) -> tuple:
@@ -36,12 +37,12 @@ def _range(name: str, value, lo_min: float = -math.inf, positive: bool = False) 
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError(f"TaskConfig.{name} must be a (low, high) pair, got {value!r}") from None
+        raise UsageError(f"TaskConfig.{name} must be a (low, high) pair, got {value!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-        raise ValueError(f"TaskConfig.{name} must be finite with low <= high, got ({lo}, {hi})")
+        raise UsageError(f"TaskConfig.{name} must be finite with low <= high, got ({lo}, {hi})")
     if lo < lo_min or (positive and lo <= 0.0):
         bound = f"> {lo_min}" if positive else f">= {lo_min}"
-        raise ValueError(f"TaskConfig.{name} low end must be {bound}, got ({lo}, {hi})")
+        raise UsageError(f"TaskConfig.{name} low end must be {bound}, got ({lo}, {hi})")
     return lo, hi
 
 
@@ -80,17 +81,17 @@ class TaskConfig:
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
         if not shapes:
-            raise ValueError(f"TaskConfig.shapes is empty: choose from {', '.join(SHAPES)}")
+            raise UsageError(f"TaskConfig.shapes is empty: choose from {', '.join(SHAPES)}")
         for shape in shapes:
             if shape not in SHAPES:
-                raise ValueError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+                raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
         object.__setattr__(self, "shapes", shapes)
         try:
             sizes = tuple(float(s) for s in np.atleast_1d(self.sizes))
         except (TypeError, ValueError):
-            raise ValueError(f"TaskConfig.sizes must be numbers (m), got {self.sizes!r}") from None
+            raise UsageError(f"TaskConfig.sizes must be numbers (m), got {self.sizes!r}") from None
         if not sizes or not all(math.isfinite(s) and s > 0.0 for s in sizes):
-            raise ValueError(f"TaskConfig.sizes must be positive numbers (m), got {sizes}")
+            raise UsageError(f"TaskConfig.sizes must be positive numbers (m), got {sizes}")
         object.__setattr__(self, "sizes", sizes)
         for name, upper in (
             ("linear_error", 0.05),
@@ -100,7 +101,7 @@ class TaskConfig:
         ):
             value = _number(name, getattr(self, name))
             if not (math.isfinite(value) and 0.0 <= value <= upper):
-                raise ValueError(f"TaskConfig.{name} must be in [0, {upper:g}], got {value!r}")
+                raise UsageError(f"TaskConfig.{name} must be in [0, {upper:g}], got {value!r}")
             object.__setattr__(self, name, value)
         ranges = {
             "friction_range": dict(positive=True),
@@ -118,17 +119,17 @@ class TaskConfig:
             if (lo, hi) != tuple(self.sensor_delay_offset) or lo > hi:
                 raise ValueError
         except (TypeError, ValueError):
-            raise ValueError(
+            raise UsageError(
                 "TaskConfig.sensor_delay_offset must be a (low, high) pair of integers, low <= "
                 f"high, got {self.sensor_delay_offset!r}"
             ) from None
         object.__setattr__(self, "sensor_delay_offset", (lo, hi))
         if self.workspace_angle[1] > math.pi or self.board_yaw_range[1] > math.pi:
-            raise ValueError("TaskConfig.workspace_angle and board_yaw_range must lie in [-pi, pi]")
+            raise UsageError("TaskConfig.workspace_angle and board_yaw_range must lie in [-pi, pi]")
         for name, lower in (("time_limit_s", 0.0), ("max_condition", 1.0)):
             value = _number(name, getattr(self, name))
             if not (math.isfinite(value) and value > lower):
-                raise ValueError(
+                raise UsageError(
                     f"TaskConfig.{name} must be a finite number > {lower:g}, got {value!r}"
                 )
             object.__setattr__(self, name, value)
@@ -144,7 +145,7 @@ class TaskConfig:
         outer = self.workspace_radius[1] + self.linear_error + self.start_xy_jitter
         reach = min(kinematics.max_tool_down_radius(h, PEG_LENGTH) for h in heights)
         if outer > reach:
-            raise ValueError(
+            raise UsageError(
                 f"TaskConfig.workspace_radius outer edge {outer:.3f} m (with errors and jitter) is "
                 f"beyond the UR5e's tool-down reach of {reach:.3f} m at the board"
             )
@@ -158,13 +159,13 @@ class TaskConfig:
         where = "radius {:.3f} m, angle {:.1f} deg, tip height {:.3f} m"
         if not np.all(found):
             i = int(np.argmin(found))
-            raise ValueError(
+            raise UsageError(
                 "TaskConfig workspace is out of the UR5e's reach with the tool down at "
                 + where.format(r[i], math.degrees(a[i]), h[i])
             )
         worst = int(np.argmax(cond))
         if cond[worst] > self.max_condition:
-            raise ValueError(
+            raise UsageError(
                 "TaskConfig workspace is near-singular at "
                 + where.format(r[worst], math.degrees(a[worst]), h[worst])
                 + f": condition number {cond[worst]:.3g} > max_condition {self.max_condition:g}"
@@ -249,7 +250,7 @@ class TrialSpec:
     @classmethod
     def concat(cls, specs: Sequence[TrialSpec]) -> TrialSpec:
         if not specs:
-            raise ValueError("TrialSpec.concat needs at least one TrialSpec")
+            raise UsageError("TrialSpec.concat needs at least one TrialSpec")
         return cls(**{n: np.concatenate([getattr(s, n) for s in specs]) for n in _SPEC_FIELDS})
 
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -260,7 +261,7 @@ class TrialSpec:
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> TrialSpec:
         missing = [name for name in _SPEC_FIELDS if name not in arrays]
         if missing:
-            raise ValueError(f"TrialSpec arrays lack {', '.join(missing)}")
+            raise UsageError(f"TrialSpec arrays lack {', '.join(missing)}")
         return cls(**{n: np.asarray(arrays[n], dtype=dt) for n, (_, dt) in _SPEC_FIELDS.items()})
 
     def validate(self) -> TrialSpec:
@@ -269,26 +270,26 @@ class TrialSpec:
         for name, (trailing, dtype) in _SPEC_FIELDS.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray):
-                raise ValueError(
+                raise UsageError(
                     f"TrialSpec.{name} must be a NumPy array, got {type(value).__name__}"
                 )
             if value.shape != (batch, *trailing):
-                raise ValueError(
+                raise UsageError(
                     f"TrialSpec.{name} has shape {value.shape}, expected {(batch, *trailing)}"
                 )
             if value.dtype != dtype:
-                raise ValueError(
+                raise UsageError(
                     f"TrialSpec.{name} has dtype {value.dtype}, expected {np.dtype(dtype)}"
                 )
             if not np.all(np.isfinite(value)):
-                raise ValueError(f"TrialSpec.{name} has non-finite values")
+                raise UsageError(f"TrialSpec.{name} has non-finite values")
         if np.any((self.shape_id < 0) | (self.shape_id >= len(SHAPES))):
-            raise ValueError(f"TrialSpec.shape_id must index SHAPES {SHAPES}")
+            raise UsageError(f"TrialSpec.shape_id must index SHAPES {SHAPES}")
         if np.any(self.size <= 0.0):
-            raise ValueError("TrialSpec.size must be positive")
+            raise UsageError("TrialSpec.size must be positive")
         rtr = self.tcp0_rot @ np.swapaxes(self.tcp0_rot, -1, -2)
         if np.any(np.abs(rtr - np.eye(3)) > 1e-6):
-            raise ValueError("TrialSpec.tcp0_rot must hold rotation matrices")
+            raise UsageError("TrialSpec.tcp0_rot must hold rotation matrices")
         return self
 
 
@@ -391,20 +392,20 @@ def sample_trials(
     number above config.max_condition are drawn again.
     """
     if not isinstance(config, TaskConfig):
-        raise ValueError(f"config must be a TaskConfig, got {type(config).__name__}")
+        raise UsageError(f"config must be a TaskConfig, got {type(config).__name__}")
     if isinstance(seed_or_rng, bool) or not isinstance(batch, int | np.integer) or batch < 0:
-        raise ValueError(f"sample_trials needs a seed and a batch size >= 0, got {batch!r}")
+        raise UsageError(f"sample_trials needs a seed and a batch size >= 0, got {batch!r}")
     if isinstance(seed_or_rng, np.random.Generator):
         rng = seed_or_rng
     elif isinstance(seed_or_rng, int | np.integer):
         rng = np.random.default_rng(int(seed_or_rng))
     else:
-        raise ValueError(f"seed_or_rng must be an int or np.random.Generator, not {seed_or_rng!r}")
+        raise UsageError(f"seed_or_rng must be an int or np.random.Generator, not {seed_or_rng!r}")
     accepted: list[dict[str, np.ndarray]] = []
     have, drawn = 0, 0
     while have < batch:
         if drawn >= MAX_REJECTION_FACTOR * max(batch, 1):
-            raise ValueError(
+            raise UsageError(
                 f"sample_trials rejected {drawn - have} of {drawn} candidates (start or goal "
                 f"configuration unreachable or condition number > {config.max_condition:g}): "
                 "shrink the workspace or relax max_condition"

@@ -1,0 +1,95 @@
+"""A fixed batch of trials on the C engine, every outcome kind, saved bit for bit: run it at two
+commits and compare, to show a change left the trial's behaviour as it was.
+
+    python experiments/fingerprint.py before.npz                  # at the old commit
+    python experiments/fingerprint.py after.npz --compare before.npz
+
+The batch: 48 trials (circle, square, triangle 50 mm, ±4 mm / ±6 deg, randomized sensor draws)
+with the baseline's 38 numbers each scaled by U(0.8, 1.2), under seven trial configs (nominal,
+protective stops at 60 N, loose settle tolerances, a 0.3 rad/s speed limit, every failure to the
+limit, a 125 Hz / 25 Hz / 3-period sensor), and 24 zero-error trials; `--compare` lists the
+arrays that differ (exit 1 if any).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from mjx_peg.engines import mujoco as engine
+from mjx_peg.engines.trial import TrialConfig, as_controller_params
+from mjx_peg.skill import sensor
+from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.task import TaskConfig, sample_trials
+
+SHAPES = ("circle", "square", "triangle")
+
+
+def variants(scale: float) -> dict[str, TrialConfig]:
+    """The trial configs, time limits times `scale`."""
+    long, short = 12.0 * scale, 3.0 * scale
+    return {
+        "nominal": TrialConfig(time_limit_s=long),
+        "stops": TrialConfig(time_limit_s=short, max_tool_force=60.0),
+        "settles": TrialConfig(time_limit_s=long, settle_tip_m=1e-3, settle_force_n=5.0,
+                               settle_moment_nm=0.5, settle_joint_speed=0.5),
+        "unstable": TrialConfig(time_limit_s=short, max_joint_speed=0.3),
+        "no_settle": TrialConfig(time_limit_s=long, end_settled=False),
+        "slow_sensor": TrialConfig(time_limit_s=8.0 * scale, sensor=sensor.SensorConfig(
+            rate_hz=125.0, cutoff_hz=25.0, delay_steps=3)),
+    }  # fmt: skip
+
+
+def fingerprint(trials: int = 48, scale: float = 1.0) -> dict[str, np.ndarray]:
+    """{variant/field: array} of every TrialResult field of the batch."""
+    task = TaskConfig(shapes=SHAPES, linear_error=0.004, angular_error=np.deg2rad(6.0),
+                      sensor_cutoff_scale=(0.5, 2.0), sensor_noise_scale=(0.5, 2.0),
+                      sensor_delay_offset=(-1, 2))  # fmt: skip
+    specs = sample_trials(task, 3, trials)
+    vector = np.asarray(baseline_params())
+    scaled = np.tile(vector, (trials, 1)) * np.random.default_rng(0).uniform(0.8, 1.2, (trials, 38))
+    params = as_controller_params(scaled, trials)
+    out = {}
+    for name, config in variants(scale).items():
+        result = engine.run_trials(specs, params, config, threads=2)
+        out.update({f"{name}/{k}": v for k, v in result.to_arrays().items()})
+        print(f"{name}: {result.summary()}")
+    zero = TaskConfig(shapes=SHAPES, linear_error=0.0, angular_error=0.0)
+    n = max(1, trials // 2)
+    result = engine.run_trials(sample_trials(zero, 7, n), as_controller_params(vector, n),
+                               TrialConfig(time_limit_s=8.0 * scale), threads=1)  # fmt: skip
+    out.update({f"zero/{k}": v for k, v in result.to_arrays().items()})
+    print(f"zero: {result.summary()}")
+    return out
+
+
+def _same(a, b, key: str) -> bool:
+    if key not in a or key not in b:
+        return False
+    x, y = np.asarray(a[key]), np.asarray(b[key])
+    return x.shape == y.shape and x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("out", help="npz to write")
+    p.add_argument("--compare", help="an npz written before, to compare bit for bit")
+    p.add_argument("--trials", type=int, default=48)
+    p.add_argument("--time-scale", type=float, default=1.0, help="times every time limit")
+    args = p.parse_args(argv)
+    arrays = fingerprint(args.trials, args.time_scale)
+    np.savez(args.out, **arrays)
+    if args.compare is None:
+        return 0
+    with np.load(args.compare, allow_pickle=False) as other:
+        names = sorted(set(other.files) | set(arrays))
+        differ = [k for k in names if not _same(other, arrays, k)]
+    print(f"{len(names) - len(differ)} of {len(names)} arrays bit-identical"
+          + (f"; differ: {', '.join(differ)}" if differ else ""))  # fmt: skip
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,234 @@
+"""One control period of a trial: every rule a period decides, written once for both engines.
+
+Per period, at the arm's measurement (the physics' position and velocity stages, the F/T
+reading one physics step old):
+
+1. `ends`: the end tests at this measurement: success (tip through the hole, near the table),
+   unstable (joints beyond `max_joint_speed`, NaN, or the engine's own physics check), the
+   protective stop (set by an earlier period's sensed force), settled (`trial.settle_update`),
+   out of time; success needs neither of the failures.
+2. `advance`, for a trial that goes on: the F/T pipeline (`skill.sensor`) on the tared reading;
+   the contact metrics (peak sensed force, the 150 N protective stop, the chatter ring of the
+   true axial force); the compliance damping W_k = a_c W_(k-1) + (1 - a_c) F_k (Eq. 4 with
+   D_c = T_c K_c, `skill.control_step`); the settle test; the control step's joint torques.
+3. `result`: what an ended trial records (`TrialResult`'s fields).
+
+`period` is 1 then 2. Written over the array-API namespace of the inputs like `skill/`: the C
+engine runs it batched in NumPy over its live rows, the MJX engine inside its jitted, vmapped
+step. What stays in the engines is the physics: stepping, and gathering a `PeriodMeasurement`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from mjx_peg._xp import namespace_of, ring_write, tree_map
+from mjx_peg.engines.trial import (
+    SettleState,
+    TrialConfig,
+    chatter_of,
+    destination,
+    is_settled,
+    is_success,
+    settle_start,
+    settle_update,
+    trial_reward,
+)
+from mjx_peg.skill import sensor
+from mjx_peg.skill.control_step import (
+    Basis,
+    ControlConfig,
+    Measurement,
+    Skill,
+    external_wrench,
+    skill_torque,
+    wrench_to_goal,
+)
+
+
+class TrialConsts(NamedTuple):
+    """Per trial, fixed at its start (a pytree; leading dims are trials)."""
+
+    skill: Skill  # the control step's constants
+    sensor: sensor.SensorParams  # the F/T pipeline's draws
+    tare: object  # (..., 6) the F/T reading at rest at the start (force, torque; sensor frame)
+    board_pos: object  # (..., 2) true hole axis
+    size: object  # (...,) hole size (m)
+    start_distance: object  # (...,) tip to `trial.destination` at the start (m)
+
+
+class TrialState(NamedTuple):
+    """What a trial carries from one control period to the next (a pytree)."""
+
+    step: object  # (...,) int: control periods since the start
+    peak_force: object  # (...,) N: largest sensed force so far
+    stop: object  # (...,) bool: the sensed force has passed max_tool_force
+    sensor: sensor.SensorState
+    coupled: object  # (..., 6) the compliance damping's output W, goal frame
+    chatter_ring: object  # (..., W) |F_k - F_(k-1)| of the true axial force at k mod W, k >= 1
+    axial: object  # (...,) N: the last period's true axial force
+    settle: SettleState
+
+
+class PeriodMeasurement(NamedTuple):
+    """What an engine gathers of a trial each period (a pytree; leading dims are trials)."""
+
+    qvel: object  # (..., n) joint velocities
+    tcp_pos: object  # (..., 3) world
+    tcp_rot: object  # (..., 3, 3)
+    tip_pos: object  # (..., 3) peg tip (true; for the end tests and the result only)
+    ft: object  # (..., 6) F/T site reading: force, torque (site frame, untared)
+    ft_rot: object  # (..., 3, 3) F/T site orientation
+    ft_pos: object  # (..., 3) F/T site position
+    jac: object  # (..., 6, n) tcp Jacobian [linear; angular], world
+    jdot_qdot: object  # (..., 6) Jd qd of the tcp
+    mass: object  # (..., n, n) joint-space inertia H
+    bias: object  # (..., n) h: bias torques less passive forces
+    physics_ok: object  # (...,) bool: the engine's own check of its step (e.g. no reset)
+
+
+class Ends(NamedTuple):
+    """The end tests of one period (`ends`), (...,) bool each."""
+
+    success: object  # inserted, and neither unstable nor stopped
+    unstable: object
+    settled: object
+    ended: object  # any of these, the protective stop, or out of time
+
+
+class Outcome(NamedTuple):
+    """What an ended trial records (`result`); the fields of `TrialResult` but time_s."""
+
+    success: object
+    final_tip_pos: object
+    peak_force: object
+    reward: object
+    unstable: object
+    steps: object
+    settled: object
+    chatter: object
+    protective_stop: object
+
+
+def make_consts(skill: Skill, sensor_params, tare, board_pos, size, tip_pos) -> TrialConsts:
+    """The constants of trials starting with the tip at `tip_pos` (..., 3)."""
+    xp = namespace_of(tip_pos, board_pos)
+    distance = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
+    return TrialConsts(skill, sensor_params, tare, board_pos, size, distance)
+
+
+def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
+    """The state of trials at their start (period 0, at the tare)."""
+    xp = namespace_of(consts.tare)
+    batch, dtype = tuple(consts.tare.shape[:-1]), consts.tare.dtype
+    return TrialState(
+        # JAX's default integers are 32-bit; NumPy counts in int64, as MjData's steps do
+        step=xp.zeros(batch, dtype=xp.int64 if xp.__name__ == "numpy" else xp.int32),
+        peak_force=xp.zeros(batch, dtype=dtype),
+        stop=xp.zeros(batch, dtype=bool),
+        sensor=sensor.initial_state(consts.sensor, config.sensor.max_delay_steps + 1, dtype),
+        coupled=xp.zeros((*batch, 6), dtype=dtype),
+        chatter_ring=xp.zeros((*batch, config.chatter_steps), dtype=dtype),
+        axial=xp.zeros(batch, dtype=dtype),
+        settle=settle_start(batch, xp),
+    )
+
+
+def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, qvel,
+         physics_ok) -> Ends:  # fmt: skip
+    """The end tests at this period's measurement (tip_pos (..., 3), qvel (..., n))."""
+    xp = namespace_of(tip_pos, qvel)
+    inside = is_success(tip_pos, consts.board_pos, consts.size, config.success_height)
+    # Too fast, NaN or infinite joint speeds fail the speed test alike.
+    fast = ~(xp.max(xp.abs(qvel), axis=-1) < config.max_joint_speed)
+    unstable = fast | ~xp.all(xp.isfinite(tip_pos), axis=-1) | ~physics_ok
+    stop = state.stop
+    success = inside & ~stop & ~unstable
+    settled = is_settled(state.settle, config) & ~inside & ~unstable & ~stop
+    ended = success | unstable | stop | settled | (state.step >= config.max_steps)
+    return Ends(success, unstable, settled, ended)
+
+
+def chatter(state: TrialState):
+    """(...,) N: the chatter metric of trials in `state` (`trial.chatter_of`)."""
+    return chatter_of(state.chatter_ring, state.step)
+
+
+def result(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos,
+           end: Ends) -> Outcome:  # fmt: skip
+    """What trials ending at this period record."""
+    reward = trial_reward(end.success, tip_pos, consts.board_pos, consts.start_distance,
+                          config.reward)  # fmt: skip
+    return Outcome(end.success, tip_pos, state.peak_force, reward, end.unstable, state.step,
+                   end.settled, chatter(state), state.stop)  # fmt: skip
+
+
+def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
+            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
+    """(state, torques (..., n), wrench (..., 6)): one period of trials that go on.
+
+    wrench: what the compliance sees (goal frame, at the tcp), after the F/T pipeline and the
+    damping. On NumPy the chatter ring is written in place (`_xp.ring_write`).
+    """
+    xp = namespace_of(meas.ft, meas.qvel)
+    step, goal_rot = state.step, consts.skill.goal_rot
+    true = external_wrench(meas.ft[..., :3], meas.ft[..., 3:], consts.tare)  # sensor frame
+    sensed, sensor_state = sensor.step(consts.sensor, state.sensor, true, step)
+    force = xp.linalg.vector_norm(sensed[..., :3], axis=-1)
+    peak = xp.maximum(state.peak_force, force)
+    stop = state.stop | (force > config.max_tool_force)
+    # Chatter: |F_k - F_(k-1)| of the true axial force (the world force along goal z).
+    f_world = xp.sum(meas.ft_rot * true[..., None, :3], axis=-1)
+    axial = xp.sum(goal_rot[..., :, 2] * f_world, axis=-1)
+    ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), step >= 1)
+    lever = meas.ft_pos - meas.tcp_pos
+    wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
+    a = config.coupling_pole
+    coupled = a * state.coupled + (1.0 - a) * wrench
+    settle = state.settle
+    if config.end_settled:
+        settle = settle_update(settle, step, meas.qvel, meas.tcp_pos, coupled, config)
+    torques = skill_torque(
+        control,
+        consts.skill,
+        basis,
+        Measurement(
+            t=step * config.timestep,
+            tcp_pos=meas.tcp_pos,
+            tcp_rot=meas.tcp_rot,
+            jac=meas.jac,
+            jdot_qdot=meas.jdot_qdot,
+            qvel=meas.qvel,
+            mass=meas.mass,
+            bias=meas.bias,
+            wrench=coupled,
+        ),
+    )
+    torques = xp.where(xp.isfinite(torques), torques, 0.0)
+    new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle)
+    return new, torques, coupled
+
+
+def period(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
+           state: TrialState, meas: PeriodMeasurement):  # fmt: skip
+    """(ends, state, torques, wrench): `ends` then `advance` at one measurement. The state and
+    torques of a trial that ended are those it would have had: the caller keeps or drops them."""
+    end = ends(config, consts, state, meas.tip_pos, meas.qvel, meas.physics_ok)
+    return (end, *advance(config, control, basis, consts, state, meas))
+
+
+__all__ = [
+    "Ends",
+    "Outcome",
+    "PeriodMeasurement",
+    "TrialConsts",
+    "TrialState",
+    "advance",
+    "chatter",
+    "ends",
+    "make_consts",
+    "period",
+    "result",
+    "start",
+    "tree_map",
+]
