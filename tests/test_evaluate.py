@@ -359,7 +359,7 @@ def test_learned_policy_directory(tmp_path):
         ({"--trials": "-3"}, "--trials must be an integer in 1..100,000, got -3"),
         ({"--shape": "hexagon"}, "unknown shape 'hexagon'"),
         ({"--linear-mm": "80"}, "--linear-mm ranges must lie in [0, 50] mm, got 80"),
-        ({"--compare": "NO_DIR"}, "is not a directory"),
+        ({"--compare": "NO_DIR"}, "nope does not exist"),
     ],
 )
 def test_bad_input_is_one_clear_line(tmp_path, capsys, change, message):
