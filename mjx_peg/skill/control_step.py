@@ -43,12 +43,8 @@ worst signs of its couplings, over Lambda at the goal across the workspace; the 
 the first baseline 12-14, the re-tuned one 84). T_c = 0.75 s keeps every one of them stable for the
 nominal sensor and for the whole training randomization (latency 0-2 periods, filters of 25-100
 Hz): the largest stable L is 376-378 at d <= 1 and 202-221 at d = 2 (tests/test_stability.py).
-Measured (60 trials, circle + square, +-4 mm / +-6 deg): the first baseline's success did not
-depend on T_c between 0.02 and 0.6 s, its axial chatter stopped (median < 0.1 N) from T_c = 10 ms
-on, and the extreme vector (L = 187) ran without chatter from T_c = 0.2 s, latency up to 3 periods.
-What the damping costs: a contact the compliance has not yet absorbed presses with the arm's own
-stiffness Lambda K_y for ~T_c; the 2 s approach (dmp.py) keeps that first press at a median 70-80 N
-sensed (p99 about 100 N) for the baseline, under the UR5e's 150 N stop.
+Measurements behind T_c (success and chatter against T_c, what the damping costs at the first
+press): docs/compliance_loop.md.
 
 Written once over the array-API namespace of its inputs, batched over leading dimensions: the
 MJX engine jits and vmaps it, the C MuJoCo engine runs it batched in NumPy, and the robot runtime
