@@ -34,19 +34,16 @@ def namespace_of(*arrays) -> types.ModuleType:
 def ring_write(ring, index, value, mask):
     """`ring` (..., W) with ring[..., index % W] = value where `mask` (index, value, mask: (...,)).
 
-    NumPy writes the masked entries in place and returns the same array (a trial's ring is
+    NumPy (rings (n, W): the CPU engine's rows) writes the masked entries in place and returns
+    the same array (a trial's ring is
     1 s of periods: copying it every period would cost more than the rest of the period); JAX,
     which has no in-place write, returns a new array.
     """
     xp = namespace_of(ring, value)
     width = ring.shape[-1]
     if xp.__name__ == "numpy":
-        if ring.ndim == 1:
-            if mask:
-                ring[index % width] = value
-            return ring
         if ring.ndim != 2:
-            raise ValueError(f"ring_write on NumPy takes (W,) or (n, W) rings, got {ring.shape}")
+            raise ValueError(f"ring_write on NumPy takes (n, W) rings, got {ring.shape}")
         rows = xp.nonzero(mask)[0]
         ring[rows, index[rows] % width] = value[rows]
         return ring

@@ -300,6 +300,7 @@ def exclusive(out, flag: str = "--out"):
     import fcntl
 
     out = Path(out)
+    check_out(out, flag)  # a file where a folder must be: one line naming the flag, not mkdir's
     lock = out.parent / f".{out.name}.lock"
     lock.parent.mkdir(parents=True, exist_ok=True)
     fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)

@@ -478,10 +478,8 @@ def test_evaluation_config_json_is_recognised_by_its_schema(tmp_path):
 # -- the catalogue's last cases ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("prog", list(CLIS))
+@pytest.mark.parametrize("prog", [p for p in CLIS if p != "mjx-peg-baseline"])  # no --out there
 def test_a_symlink_loop_as_out_is_one_line(prog, tmp_path, capsys):
-    if prog == "mjx-peg-baseline":
-        pytest.skip("writes no --out")
     (tmp_path / "a").symlink_to(tmp_path / "b")
     (tmp_path / "b").symlink_to(tmp_path / "a")
     main, required = CLIS[prog]

@@ -242,7 +242,7 @@ class Lane:
             if rows.size == 0:
                 return m
             state = _rows(self.state, rows)
-            outcome = period.result(cfg, _rows(self.consts, rows), state, tip[rows].copy(),
+            outcome = period.result(cfg, _rows(self.consts, rows), state, tip[rows],
                                     _rows(end, rows))  # fmt: skip
             source.finish(self.spec_index[rows], outcome, state.step * cfg.timestep)
             for i in rows.tolist():
@@ -276,7 +276,6 @@ class Lane:
             jdot_qdot=(jac_dot @ m.qvel[..., None])[..., 0],
             mass=m.mass,
             bias=m.bias,
-            physics_ok=np.ones(self.n, dtype=bool),  # the end tests have run
         )
 
     def advance(self, m: sims.Measured):

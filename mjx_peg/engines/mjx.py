@@ -136,7 +136,6 @@ class _Program:
             jdot_qdot=jnp.concatenate([jdp.T, jdr.T], axis=0) @ d.qvel,
             mass=mjx.full_m(m, d),
             bias=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, ids.dof_adr),
-            physics_ok=jnp.ones((), bool),  # MJX does not reset: NaN fails the end tests
         )
 
     def _init(self, inp):

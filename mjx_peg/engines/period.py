@@ -84,7 +84,6 @@ class PeriodMeasurement(NamedTuple):
     jdot_qdot: object  # (..., 6) Jd qd of the tcp
     mass: object  # (..., n, n) joint-space inertia H
     bias: object  # (..., n) h: bias torques less passive forces
-    physics_ok: object  # (...,) bool: the engine's own check of its step (e.g. no reset)
 
 
 class Ends(NamedTuple):
@@ -135,13 +134,17 @@ def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
 
 
 def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, qvel,
-         physics_ok) -> Ends:  # fmt: skip
-    """The end tests at this period's measurement (tip_pos (..., 3), qvel (..., n))."""
+         physics_ok=None) -> Ends:  # fmt: skip
+    """The end tests at this period's measurement (tip_pos (..., 3), qvel (..., n));
+    physics_ok (...,) bool: the engine's own check of its step, if it has one (the C engine:
+    MuJoCo did not reset the data)."""
     xp = namespace_of(tip_pos, qvel)
     inside = is_success(tip_pos, consts.board_pos, consts.size, config.success_height)
     # Too fast, NaN or infinite joint speeds fail the speed test alike.
     fast = ~(xp.max(xp.abs(qvel), axis=-1) < config.max_joint_speed)
-    unstable = fast | ~xp.all(xp.isfinite(tip_pos), axis=-1) | ~physics_ok
+    unstable = fast | ~xp.all(xp.isfinite(tip_pos), axis=-1)
+    if physics_ok is not None:
+        unstable = unstable | ~physics_ok
     stop = state.stop
     success = inside & ~stop & ~unstable
     settled = is_settled(state.settle, config) & ~inside & ~unstable & ~stop
@@ -213,7 +216,7 @@ def period(config: TrialConfig, control: ControlConfig, basis: Basis, consts: Tr
            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
     """(ends, state, torques, wrench): `ends` then `advance` at one measurement. The state and
     torques of a trial that ended are those it would have had: the caller keeps or drops them."""
-    end = ends(config, consts, state, meas.tip_pos, meas.qvel, meas.physics_ok)
+    end = ends(config, consts, state, meas.tip_pos, meas.qvel)
     return (end, *advance(config, control, basis, consts, state, meas))
 
 

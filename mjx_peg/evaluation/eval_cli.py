@@ -229,7 +229,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif paper_name == "none":
         paper_name = None
     cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    cli.check_out(out)
     with cli.exclusive(out):
         if args.ray is not None:  # join the cluster before anything is written
             from mjx_peg.engines import ray_pool
