@@ -10,7 +10,7 @@ plain `mj_step` and the recorded torques held, no controller, on as many process
 has threads (the ratio's reference), and the same snapshots stepped by `mujoco.batch.Batch`, one
 step per call over 512 simulations at a time (the physics as the engine runs it). Then the engine
 with early ending (TrialConfig.end_settled, the default), the fixed cost of a call, and a profile
-of one lane by part (each part wrapped in a timer, the timers' own cost subtracted). The mjx
+of one lane by stage (the engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx
 engine is timed on `--mjx-trials` trials (compile time reported apart). `--write` replaces the
 "## Trial engines" section of BENCHMARKS.md.
 """
@@ -29,7 +29,7 @@ import numpy as np
 from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
 
 from mjx_peg.cores import cores
-from mjx_peg.engines import lanes, period, sims
+from mjx_peg.engines import lanes, sims
 from mjx_peg.engines import mujoco as cpu_engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill.baseline import baseline_params
@@ -134,93 +134,37 @@ def replay_batch(specs, snaps, every, nthread, nsim=512):
     return steps / seconds
 
 
-class _Timers:
-    """Wraps functions so that every call adds its wall time to a named total."""
+class StageTimes:
+    """A profile hook for the CPU engine: seconds and calls per stage."""
 
     def __init__(self):
-        self.total, self.calls = collections.Counter(), collections.Counter()
-        self._undo = []
-        noop = self.wrap("noop", lambda: None)
-        for _ in range(100_000):
-            noop()
-        self.overhead = self.total.pop("noop") / self.calls.pop("noop")
+        self.seconds, self.calls = collections.Counter(), collections.Counter()
 
-    def wrap(self, name, fn):
-        def timed(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                self.total[name] += time.perf_counter() - start
-                self.calls[name] += 1
-
-        return timed
-
-    def patch(self, owner, attr, name):
-        original = getattr(owner, attr)
-        self._undo.append((owner, attr, original))
-        setattr(owner, attr, self.wrap(name, original))
-
-    def restore(self):
-        for owner, attr, original in reversed(self._undo):
-            setattr(owner, attr, original)
-
-    def net(self, name):
-        """Seconds in `name`, less the timers' own cost."""
-        return self.total[name] - self.calls[name] * self.overhead
+    def __call__(self, stage: str, seconds: float) -> None:
+        self.seconds[stage] += seconds
+        self.calls[stage] += 1
 
 
-_PARTS = {
-    "step": "`Batch.step` (the physics, C)",
-    "loads": "loading trials: `start_trial`, `Batch.forward`, skill constants",
-    "measure": "gathering the bound fields of the live rows",
-    "jacobians": "Jacobian and its derivative from cdof, cdof_dot (NumPy)",
-    "ended": "end tests and results (`period.ends`, `period.result`)",
-    "wrench": "the wrench: F/T pipeline, damping, contact metrics (`period.advance` less the "
-    "two below)",
-    "settle": "settle test (`settle_update`)",
-    "controller": "`skill_torque`, the batched controller",
-}
-
-
-def profile_parts(specs, params, config):
-    """µs per env-step by part of one lane in this process."""
-    timers = _Timers()
-    parts = [
-        (mujoco.batch.Batch, "step", "step"),
-        (sims.Sims, "load", "loads"),
-        (sims.Sims, "forward", "loads"),
-        (sims.Sims, "measure", "measure"),
-        (lanes, "jacobians", "jacobians"),
-        (period, "ends", "ended"),
-        (period, "result", "ended"),
-        (period, "advance", "advance"),
-        (period, "settle_update", "settle"),
-        (period, "skill_torque", "controller"),
-    ]
-    for owner, attr, name in parts:
-        timers.patch(owner, attr, name)
-    try:
-        start = time.perf_counter()
-        result = cpu_engine.run_trials(specs, params, config, threads=1)
-        wall = time.perf_counter() - start
-    finally:
-        timers.restore()
-    steps = int(result.steps.sum())
-    timers.total["wrench"] = timers.net("advance") - timers.net("settle") - timers.net("controller")
-    timers.calls["wrench"] = 0
-    shares = {text: timers.net(name) for name, text in _PARTS.items()}
-    shares["the rest: torque writes, Jd qd, peak force, row bookkeeping"] = wall - sum(
-        shares.values()
-    )
-    calls = timers.calls["controller"]
+def profile_parts(specs, params, config, unprofiled_wall=None):
+    """µs per env-step by stage of one lane in this process (`run_trials(profile=...)`)."""
+    times = StageTimes()
+    start = time.perf_counter()
+    result = cpu_engine.run_trials(specs, params, config, threads=1, profile=times)
+    wall = time.perf_counter() - start
+    steps, periods = int(result.steps.sum()), times.calls["step"]
+    shares = {f"{name}: {text}": times.seconds[name] for name, text in lanes.PROFILE_STAGES.items()}
+    shares["the rest: the queue, progress, the lane's loop"] = wall - sum(shares.values())
     lines = [f"{k}: {1e6 * v / steps:.2f}" for k, v in shares.items()]
     lines.append(f"total: {1e6 * wall / steps:.2f} ({steps / wall:,.0f} steps/s)")
+    if unprofiled_wall:
+        lines.append(f"the table's 1-thread run (no hook, best of --repeat): "
+                     f"{1e6 * unprofiled_wall / steps:.2f}")  # fmt: skip
+    per_period = 1e6 / max(periods, 1)  # s -> µs per period
+    numpy_pass = wall - times.seconds["step"] - times.seconds["load"]
     lines.append(
-        f"controller: {calls} calls, {steps / calls:.1f} trials per call on average, "
-        f"{1e6 * timers.net('controller') / calls:.0f} µs per call; the NumPy pass (all but "
-        f"the physics and loads): {1e6 * (wall - shares[_PARTS['step']]) / calls:.0f} µs per "
-        "control period"
+        f"{periods} control periods, {steps / max(periods, 1):.1f} trials each on average; "
+        f"`period.advance` {per_period * times.seconds['advance']:.0f} µs per period, the NumPy "
+        f"pass (all but the physics and loads) {per_period * numpy_pass:.0f} µs"
     )
     return lines
 
@@ -258,7 +202,7 @@ def main() -> None:
     p.add_argument("--mjx-trials", type=int, default=8, help="0 skips the mjx engine")
     p.add_argument("--mjx-time-limit", type=float, default=2.0, help="simulated s (mjx)")
     p.add_argument("--repeat", type=int, default=2, help="engine runs per row (best kept)")
-    p.add_argument("--no-profile", action="store_true", help="skip the per-part profile")
+    p.add_argument("--no-profile", action="store_true", help="skip the per-stage profile")
     p.add_argument("--write", action="store_true", help="update BENCHMARKS.md")
     args = p.parse_args()
 
@@ -272,6 +216,7 @@ def main() -> None:
     snaps = record_states(specs, params, full, args.replay_every)
     replayed = f"{len(snaps)} snapshots x {args.replay_every} steps"
     rows, notes = [], [f"load average before: {os.getloadavg()[0]:.2f}"]
+    walls = {}
     for threads in sorted({1, args.threads}):
         # Best of three: one replay lasts about a second on this machine, which is noisy.
         ceiling, ceiling_cpu = max(
@@ -284,7 +229,7 @@ def main() -> None:
             key=lambda run: run[1],
         )
         steps = int(result.steps.sum())
-        rate, cpu_step = steps / wall, cpu / steps
+        rate, cpu_step, walls[threads] = steps / wall, cpu / steps, wall
         slots = min(lanes.SLOTS_PER_THREAD, -(-len(specs) // threads))
         ratio = (
             f"**{100 * rate / ceiling:.0f} %** of ceiling; CPU {1e6 * cpu_step:.2f} µs/step, "
@@ -309,7 +254,7 @@ def main() -> None:
     notes.append(f"load average after: {os.getloadavg()[0]:.2f}")
     if not args.no_profile:
         notes += ["profile of one lane (threads=1), µs per env-step:"]
-        notes += ["  " + line for line in profile_parts(specs, params, full)]
+        notes += ["  " + line for line in profile_parts(specs, params, full, walls[1])]
     if args.mjx_trials:
         sub = specs.take(np.arange(args.mjx_trials))
         sub_params = as_controller_params(baseline_params(), len(sub))

@@ -42,11 +42,11 @@ def variants(scale: float) -> dict[str, TrialConfig]:
     }  # fmt: skip
 
 
-def fingerprint(trials: int = 48, scale: float = 1.0) -> dict[str, np.ndarray]:
+def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange"):
     """{variant/field: array} of every TrialResult field of the batch."""
     task = TaskConfig(shapes=SHAPES, linear_error=0.004, angular_error=np.deg2rad(6.0),
                       sensor_cutoff_scale=(0.5, 2.0), sensor_noise_scale=(0.5, 2.0),
-                      sensor_delay_offset=(-1, 2))  # fmt: skip
+                      sensor_delay_offset=(-1, 2), grasp_model=grasp_model)  # fmt: skip
     specs = sample_trials(task, 3, trials)
     vector = np.asarray(baseline_params())
     scaled = np.tile(vector, (trials, 1)) * np.random.default_rng(0).uniform(0.8, 1.2, (trials, 38))
@@ -78,8 +78,11 @@ def main(argv=None) -> int:
     p.add_argument("--compare", help="an npz written before, to compare bit for bit")
     p.add_argument("--trials", type=int, default=48)
     p.add_argument("--time-scale", type=float, default=1.0, help="times every time limit")
+    p.add_argument("--grasp-model", default="flange", choices=("flange", "board"),
+                   help="where the grasp errors go (default flange: comparable with batches "
+                   "saved before the board model existed)")  # fmt: skip
     args = p.parse_args(argv)
-    arrays = fingerprint(args.trials, args.time_scale)
+    arrays = fingerprint(args.trials, args.time_scale, args.grasp_model)
     np.savez(args.out, **arrays)
     if args.compare is None:
         return 0

@@ -172,6 +172,18 @@ def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> No
     )
 
 
+def add_grasp_model_option(parser: argparse.ArgumentParser, models, default: str | None) -> None:
+    """--grasp-model: where a trial's grasp errors go (world.constants.GRASP_MODELS)."""
+    parser.add_argument(
+        "--grasp-model",
+        default=default,
+        choices=models,
+        help="where the grasp errors (height, tilt) go: board (the default), the paper's: the "
+        "board raised and tilted about its hole's entrance; flange, ours and harder: the peg "
+        "tilted in the gripper, its tip moved by 150 mm x sin(tilt) before contact",
+    )
+
+
 def add_ray_option(parser: argparse.ArgumentParser) -> None:
     """--ray [ADDRESS]: the CPU engine's trials on a Ray cluster (train.py, eval.py)."""
     parser.add_argument(

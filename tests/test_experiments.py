@@ -1,10 +1,24 @@
-"""Each script under experiments/ runs with tiny arguments (so that none can rot)."""
+"""Each script under experiments/ (and benchmarks/trials.py's profile) runs with tiny arguments,
+so that none can rot."""
 
+import csv
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_script(path: str, *args) -> str:
+    """stdout of `python ROOT/path args` (it must exit 0)."""
+    done = subprocess.run([sys.executable, ROOT / path, *map(str, args)], capture_output=True,
+                          text=True, cwd=ROOT)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
 
 
 def test_fingerprint_runs_and_compares_bit_for_bit(tmp_path):
@@ -17,3 +31,133 @@ def test_fingerprint_runs_and_compares_bit_for_bit(tmp_path):
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert "70 of 70 arrays bit-identical" in done.stdout
+
+
+def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_path):
+    tiny = ["--trials", 3, "--time-limit", 0.3, "--threads", 1, "--shapes", "square"]
+    nominal, nofilter = tmp_path / "nominal.csv", tmp_path / "nofilter.csv"
+    out = run_script("experiments/contact.py", *tiny, "--csv", nominal)
+    assert "3 trials" in out and "physics steps" in out
+    run_script("experiments/contact.py", *tiny, "--sensor", "nofilter", "--csv", nofilter)
+    with open(nominal) as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["trial"]) for r in rows] == [0, 1, 2]
+    assert {"success", "peak_force", "chatter", "tip_depth_mm", "tip_off_axis_mm"} <= set(rows[0])
+    assert all(int(r["steps"]) == 150 and float(r["time_s"]) == 0.3 for r in rows)  # 2 ms steps
+    assert all(0.0 < float(r["peak_force"]) < 150.0 for r in rows)
+    table = run_script("experiments/contact_table.py", "--reference", nominal, nominal, nofilter)
+    lines = table.strip().splitlines()
+    assert len(lines) == 4 and lines[0].startswith("| run | success")
+    assert lines[2].startswith("| nominal | 0.0 % (0 / 3)") and "0 lost, 0 gained" in lines[2]
+    assert lines[3].startswith("| nofilter |")
+
+
+def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):
+    from mjx_peg.evaluation import grid
+
+    dirs = {}
+    for full in (False, True):
+        config = grid.EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
+                                 angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
+                                 size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
+        out = dirs[full] = tmp_path / ("full" if full else "early")
+        grid.prepare_out_dir(out, config, None)
+        _, controller = grid.load_controller("baseline")
+        assert grid.run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
+    report = tmp_path / "BENCHMARKS.md"
+    report.write_text("# Benchmarks\n\n## Early ending\n\nold\n\n## Next\n\nkept\n")
+    out = run_script("experiments/early_ending.py", dirs[False], dirs[True], "--write", report)
+    assert "Same outcome: 4 of 4 trials (100.00 %)" in out
+    text = report.read_text()
+    assert "old" not in text and "Same outcome: 4 of 4" in text and "## Next\n\nkept" in text
+    assert "Reproduce: `python experiments/early_ending.py" in text
+
+
+def test_replay_failure_finds_a_failure_and_plots_its_replay(tmp_path):
+    png = tmp_path / "replay.png"
+    out = run_script("experiments/replay_failure.py", "--policy", "baseline", "--old-policy",
+                     "baseline", "--out", png, "--trials", 2, "--search-time-limit", 0.1,
+                     "--confirm-time-limit", 0.2, "--time-limit", 0.2)  # fmt: skip
+    assert "2 trials: first failure of baseline under the old trial (0.1 s) is trial 0" in out
+    assert "under the current trial, baseline: 0/1 succeeded" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_trials_benchmark_prints_its_table_and_the_profile(tmp_path):
+    out = run_script("benchmarks/trials.py", "--trials", 4, "--time-limit", 0.2, "--threads", 1,
+                     "--repeat", 1, "--mjx-trials", 0, "--replay-every", 25)  # fmt: skip
+    assert "| mujoco | " in out and "| bare mj_step (ceiling) |" in out
+    assert "profile of one lane (threads=1), µs per env-step:" in out
+    from mjx_peg.engines.lanes import PROFILE_STAGES
+
+    for stage in PROFILE_STAGES:
+        assert f"  {stage}: " in out
+    assert "100 control periods, 4.0 trials each on average" in out  # 0.2 s, 4 slots
+
+
+def test_the_profile_hook_sees_every_stage_and_changes_no_result():
+    from mjx_peg.engines import mujoco as engine
+    from mjx_peg.engines.lanes import PROFILE_STAGES
+    from mjx_peg.engines.trial import TrialConfig, as_controller_params
+    from mjx_peg.skill.baseline import baseline_params
+    from mjx_peg.world.task import TaskConfig, sample_trials
+
+    task = TaskConfig(shapes=("circle", "square"), linear_error=0.004, angular_error=0.1)
+    specs = sample_trials(task, 5, 5)
+    params = as_controller_params(baseline_params(), len(specs))
+    config = TrialConfig(time_limit_s=0.2)
+    seconds, calls = {}, {}
+
+    def profile(stage, s):
+        assert s >= 0.0
+        seconds[stage] = seconds.get(stage, 0.0) + s
+        calls[stage] = calls.get(stage, 0) + 1
+
+    plain = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2)
+    watch = lambda lane, rows, wrench: None  # noqa: E731  (the observer stage too)
+    timed = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2,
+                              profile=profile, observer=watch)  # fmt: skip
+    for name, value in plain.to_arrays().items():
+        assert value.tobytes() == timed.to_arrays()[name].tobytes(), name
+    assert set(calls) == set(PROFILE_STAGES)
+    assert (timed.steps == 100).all()  # 0.2 s each: on 2 slots, 3 rounds of 100 periods
+    assert calls["step"] == calls["advance"] == calls["observer"] == 300
+    with pytest.raises(ValueError, match="profile"):
+        engine.run_trials(specs, params, config, processes=1, profile=profile)
+
+
+@pytest.mark.slow
+def test_engines_agree_saves_both_engines_results(tmp_path):
+    out = tmp_path / "agree.npz"
+    text = run_script("experiments/engines_agree.py", "--trials", 4, "--time-limit", 0.4,
+                      "--batch", 4, "--shapes", "square", "--out", out)  # fmt: skip
+    assert "same outcome on 4/4" in text
+    with np.load(out) as saved:
+        assert saved["mujoco_success"].shape == saved["mjx_success"].shape == (4,)
+        np.testing.assert_array_equal(saved["mujoco_steps"], saved["mjx_steps"])  # 0.4 s each
+        # The engines read the same sensor: the F/T pipeline's noise and bias come from the
+        # trial, not the engine, so in free motion (0.4 s: nothing touched yet) both report the
+        # same peak sensed force and chatter (float32 in MJX).
+        assert np.all(saved["mujoco_peak_force"] > 1.0)  # the noise and the bias
+        np.testing.assert_allclose(saved["mjx_peak_force"], saved["mujoco_peak_force"], rtol=1e-4)
+        np.testing.assert_allclose(saved["mjx_chatter"], saved["mujoco_chatter"], rtol=1e-3)
+
+
+@pytest.mark.slow
+def test_contact_diff_shows_both_engines_contacts_of_one_state():
+    text = run_script("experiments/contact_diff.py", "--trials", 6, "--count", 1, "--step", 10,
+                      "--time-limit", 0.05, "--shape", "square")  # fmt: skip
+    assert "trial 3 (square) at step 10:" in text
+    assert "  mujoco: " in text and "  mjx: " in text and "qacc: mujoco" in text
+
+
+def test_failures_classifies_each_failed_trial(tmp_path):
+    out = tmp_path / "f.npz"
+    text = run_script("experiments/failures.py", "--shape", "square", "--trials", 3,
+                      "--time-limit", 0.3, "--list", "--out", out)  # fmt: skip
+    assert "## square: 0/3 succeeded" in text  # 0.3 s: still above the board
+    assert "3 of 3 trials failed" in text and "| above the board | 3 | 100.0 | 3 |" in text
+    assert len(re.findall(r"trial +\d+: above the board +tip", text)) == 3  # one per failure
+    with np.load(out) as saved:
+        assert saved["square/result/final_tip_pos"].shape == (3, 3)
+        assert saved["square/spec/board_tilt"].shape == (3, 2)

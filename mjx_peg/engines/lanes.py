@@ -13,11 +13,16 @@ trial's constants and state (`period.TrialConsts`, `period.TrialState`) move wit
 are re-sorted. Lanes run in Python threads: while one steps in C, another runs its NumPy pass.
 A trial's arithmetic does not depend on its lane, row, batch or thread count, so results are
 bit-identical whatever the threads, slots and batch threads (tested).
+
+Profiling: `run_trials(..., profile=f)` calls `f(stage, seconds)` in the lane's thread for each
+stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it the lanes read
+no clock. It only reads the clock: the results are the same with it.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -38,7 +43,7 @@ from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import mujoco_log
-from mjx_peg.world.task import TrialSpec, goal_pose
+from mjx_peg.world.task import TrialSpec, goal_pose, hole_frame
 
 # MuJoCo's warnings go where the CLI sent them (its output directory or nowhere), never to
 # MUJOCO_LOG.TXT in the working directory: world/mujoco_log.py; here for the worker processes.
@@ -64,6 +69,18 @@ RESULT_DTYPE = np.dtype(
         ("protective_stop", "?"),
     ]
 )
+
+
+# The stages a profile hook sees (`run_trials(profile=...)`), in the order of a period.
+PROFILE_STAGES = {
+    "measure": "the bound fields of the live rows gathered (`Sims.measure`)",
+    "ends": "the end tests (`period.ends`) and the ended trials' results (`period.result`)",
+    "load": "new trials into free rows (`scene.start_trial`, mj_forward, constants), rows sorted",
+    "jacobians": "the tcp Jacobian and Jd qd from cdof (`jacobian.jacobians`)",
+    "advance": "`period.advance`: F/T pipeline, damping, metrics, settle test, controller",
+    "observer": "the observer, if any",
+    "step": "torques to ctrl and one physics step of each scene's live simulations (C)",
+}
 
 
 def to_result(records: np.ndarray) -> TrialResult:
@@ -122,8 +139,10 @@ class Lane:
     """Up to `slots` trials stepped together by one thread; live trials in rows [0, n), sorted by
     (scene, simulation): row i is trial `spec_index[i]`, with `consts[i]` and `state[i]`."""
 
-    def __init__(self, specs, params, config: TrialConfig, slots: int, nsim: dict, kind: tuple):
+    def __init__(self, specs, params, config: TrialConfig, slots: int, nsim: dict, kind: tuple,
+                 profile: Callable[[str, float], None] | None = None):  # fmt: skip
         self.specs, self.params, self.config = specs, params, config
+        self.profile = profile  # profile(stage, seconds), or None: no clock read
         self.basis = fitted_basis(config.dmp)
         self.control = control_config(config)
         self.slots = slots
@@ -131,6 +150,7 @@ class Lane:
         self.scenes: list[sims.Sims] = []  # in order of first use
         self._scene_of: dict[tuple, int] = {}
         self.sensor_params = sensor_params(specs, config)  # of every trial, computed once
+        self.hole_origin, self.hole_axis = hole_frame(specs)
         self.n = 0
         empty = np.zeros(0, dtype=np.int64)
         self.scene, self.sim, self.spec_index = empty, empty, empty
@@ -179,7 +199,8 @@ class Lane:
             skill,
             sensor.SensorParams(*(value[index] for value in self.sensor_params)),
             d.sensordata[scene_sims.ft].copy(),
-            s.board_pos[index],
+            self.hole_origin[index],
+            self.hole_axis[index],
             s.size[index],
             d.site_xpos[scene_sims.ids.tip_site].copy(),
         )
@@ -221,6 +242,17 @@ class Lane:
 
     # -- one control period ----------------------------------------------------------------------
 
+    def _clock(self) -> float:
+        return time.perf_counter() if self.profile is not None else 0.0
+
+    def _lap(self, stage: str, since: float) -> float:
+        """With a profile hook, report `stage` as the seconds since `since`; the time now."""
+        if self.profile is None:
+            return 0.0
+        now = time.perf_counter()
+        self.profile(stage, now - since)
+        return now
+
     def _measure(self) -> sims.Measured:
         """The bound fields of rows [0, n): one gather per field and scene."""
         parts = [self.scenes[k].measure(ids) for k, (a, b, ids) in enumerate(self.blocks) if b > a]
@@ -233,13 +265,16 @@ class Lane:
         the live rows, None when none is left."""
         cfg = self.config
         while self.n:
+            t = self._clock()
             m = self._measure()
+            t = self._lap("measure", t)
             tip = m.site_pos[:, 1]
             # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
             physics_ok = ~(np.abs(m.time - self.state.step * cfg.timestep) > 0.5 * cfg.timestep)
             end = period.ends(cfg, self.consts, self.state, tip, m.qvel, physics_ok)
             rows = np.flatnonzero(end.ended)
             if rows.size == 0:
+                self._lap("ends", t)
                 return m
             state = _rows(self.state, rows)
             outcome = period.result(cfg, _rows(self.consts, rows), state, tip[rows],
@@ -247,6 +282,7 @@ class Lane:
             source.finish(self.spec_index[rows], outcome, state.step * cfg.timestep)
             for i in rows.tolist():
                 self.scenes[self.scene[i]].free.append(int(self.sim[i]))
+            t = self._lap("ends", t)
             indices = []
             for _ in range(rows.size):
                 index = source.take()
@@ -256,6 +292,7 @@ class Lane:
             keep = np.ones(self.n, dtype=bool)
             keep[rows] = False
             self._add(indices, np.flatnonzero(keep))
+            self._lap("load", t)
             if report:
                 source.flush()
         return None
@@ -281,21 +318,27 @@ class Lane:
     def advance(self, m: sims.Measured):
         """(state, torques, wrench) of rows [0, n) after this period: `period.advance` on their
         measurement; the lane's state is not changed (but the chatter ring, in place)."""
+        t = self._clock()
         meas = self.measurement(m)
-        return period.advance(self.config, self.control, self.basis, self.consts, self.state,
-                              meas)  # fmt: skip
+        t = self._lap("jacobians", t)
+        out = period.advance(self.config, self.control, self.basis, self.consts, self.state, meas)
+        self._lap("advance", t)
+        return out
 
     def _control(self, m: sims.Measured, observer) -> None:
         """One period of every live trial: the torques written to ctrl, every simulation
         stepped once."""
         state, torques, wrench = self.advance(m)
+        t = self._clock()
         if observer is not None:
             self.tip_pos, self.tcp_pos, self.measured = m.site_pos[:, 1], m.site_pos[:, 0], m
             observer(self, np.arange(self.n), wrench)
+            t = self._lap("observer", t)
         self.state = state
         for k, (a, b, ids) in enumerate(self.blocks):
             if b > a:
                 self.scenes[k].step(ids, torques[a:b])
+        self._lap("step", t)
 
     @property
     def qpos(self) -> np.ndarray:
@@ -323,7 +366,9 @@ class Lane:
                 if index is None:
                     break
                 indices.append(index)
+            t = self._clock()
             self._add(indices, np.zeros(0, dtype=np.int64))
+            self._lap("load", t)
             while self.n and not source.stopped:
                 m = self._end_trials(source, report)
                 if m is None:
@@ -335,7 +380,7 @@ class Lane:
 
 
 def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
-              observer=None) -> None:  # fmt: skip
+              observer=None, profile=None) -> None:  # fmt: skip
     """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
 
     The simulations of this call's scenes are kept for the next call, the others dropped.
@@ -345,7 +390,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
         key = sims.scene_key(specs, index)
         count[key] = count.get(key, 0) + 1
     nsim = {key: min(slots, c) for key, c in count.items()}
-    lanes = [Lane(specs, params, config, slots, nsim, kind) for _ in range(threads)]
+    lanes = [Lane(specs, params, config, slots, nsim, kind, profile) for _ in range(threads)]
     errors: list[BaseException] = []
 
     def work(lane, report=False):
@@ -395,6 +440,7 @@ def run_trials(
     observer: Callable | None = None,
     batch_threads: int | None = None,
     persistent: bool | None = None,
+    profile: Callable[[str, float], None] | None = None,
 ) -> TrialResult:
     """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_trials`' options;
     params batched and validated)."""
@@ -410,5 +456,5 @@ def run_trials(
     queue = Queue(n, progress)
     kind = (batch_threads, None if persistent is None else bool(persistent))
     if n:
-        run_lanes(specs, params, config, threads, slots, kind, queue, observer)
+        run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile)
     return to_result(queue.records)

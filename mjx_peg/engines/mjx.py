@@ -34,8 +34,7 @@ from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import Basis, make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world import constants, scene
-from mjx_peg.world.rotations import quat_from_yaw
-from mjx_peg.world.task import TrialSpec, goal_pose
+from mjx_peg.world.task import TrialSpec, board_pose, goal_pose, hole_frame
 
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
@@ -61,7 +60,10 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
     """Per-trial arrays the jitted function consumes (NumPy, leading dim = trials)."""
     n = len(specs)
     zeros = np.zeros(n)
-    board_quat = np.asarray(quat_from_yaw(np.asarray(specs.board_yaw, dtype=np.float64)))
+    board_pos3, board_quat = board_pose(
+        specs.board_pos, specs.board_yaw, specs.board_height, specs.board_tilt
+    )
+    hole_origin, hole_axis = hole_frame(specs)
     dz, tilt_x, tilt_y = specs.grasp_error.T
     peg_pos = np.stack([zeros, zeros, dz], axis=-1)
     peg_quat = np.stack(
@@ -71,7 +73,7 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
     sp = sensor_params(specs, config)
     return dict(
         **{f"sensor_{name}": value for name, value in sp._asdict().items()},
-        board_pos3=np.concatenate([specs.board_pos, zeros[:, None]], axis=1),
+        board_pos3=board_pos3,
         board_quat=board_quat,
         peg_pos=peg_pos,
         peg_quat=peg_quat,
@@ -79,7 +81,8 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
         q0=np.asarray(specs.q0, dtype=np.float64),
         goal_pos=goal_pos,
         goal_rot=goal_rot,
-        board_pos=np.asarray(specs.board_pos, dtype=np.float64),
+        hole_origin=hole_origin,
+        hole_axis=hole_axis,
         size=np.asarray(specs.size, dtype=np.float64),
         k_t=params.k_t,
         k_theta=params.k_theta,
@@ -153,8 +156,8 @@ class _Program:
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
         skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
         sp = sensor.SensorParams(*(inp[f"sensor_{name}"] for name in sensor.SensorParams._fields))
-        consts = period.make_consts(skill, sp, meas.ft, inp["board_pos"], inp["size"],
-                                    meas.tip_pos)  # fmt: skip
+        consts = period.make_consts(skill, sp, meas.ft, inp["hole_origin"], inp["hole_axis"],
+                                    inp["size"], meas.tip_pos)  # fmt: skip
         state = period.start(cfg, consts)
         end = period.Ends(*(jnp.zeros((), bool),) * 4)
         outcome = period.result(cfg, consts, state, meas.tip_pos, end)

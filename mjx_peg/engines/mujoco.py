@@ -30,6 +30,7 @@ def run_trials(
     persistent: bool | None = None,
     processes: int | None = None,
     ray: str | None = None,
+    profile: Callable[[str, float], None] | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -44,6 +45,9 @@ def run_trials(
     progress(count) is called in the caller's thread as trials finish. observer(lane, rows,
     wrench), if given, is called every control period with a lane, its live rows and their
     wrenches (for demos and benchmarks); it needs threads=1, its default then.
+    profile(stage, seconds), if given, is called in the lane's thread as each stage of a period
+    ends (`lanes.PROFILE_STAGES`: the physics step, the end tests, the Jacobians, ...; wall time),
+    for benchmarks; the results are the same with it. It needs the lanes in this process.
     processes: run the trials in that many worker processes (`engines/processes.py`: one GIL
     each) of `threads` lanes each (default 1); None (the default): lanes in this process.
     ray: run them on the Ray cluster at this address, one lane per CPU (`engines/ray_pool.py`:
@@ -57,9 +61,10 @@ def run_trials(
                             ("batch_threads", batch_threads)):  # fmt: skip
             lanes.count(name, value, 1)  # here, before any worker starts
     if ray is not None:
-        if processes is not None or observer is not None or threads not in (None, 1):
+        hooks = observer is not None or profile is not None
+        if processes is not None or hooks or threads not in (None, 1):
             raise UsageError("ray runs one lane per cluster CPU: it takes no processes, "
-                             "threads or observer")  # fmt: skip
+                             "threads, observer or profile")  # fmt: skip
         from mjx_peg.engines import ray_pool
 
         return ray_pool.run_trials(
@@ -68,8 +73,9 @@ def run_trials(
         )  # fmt: skip
     if processes is not None:
         processes = lanes.count("processes", processes, 1)
-        if observer is not None:
-            raise UsageError("an observer runs in the lane's thread: it needs processes=None")
+        if observer is not None or profile is not None:
+            raise UsageError("an observer or profile runs in the lane's thread: it needs "
+                             "processes=None")  # fmt: skip
         from mjx_peg.engines import processes as worker_processes
 
         return worker_processes.run_trials(
@@ -79,4 +85,5 @@ def run_trials(
     return lanes.run_trials(
         specs, params, config, threads=threads, slots_per_thread=slots_per_thread,
         progress=progress, observer=observer, batch_threads=batch_threads, persistent=persistent,
+        profile=profile,
     )  # fmt: skip

@@ -27,7 +27,6 @@ from mjx_peg.engines.trial import (
     SettleState,
     TrialConfig,
     chatter_of,
-    destination,
     is_settled,
     is_success,
     settle_start,
@@ -52,9 +51,10 @@ class TrialConsts(NamedTuple):
     skill: Skill  # the control step's constants
     sensor: sensor.SensorParams  # the F/T pipeline's draws
     tare: object  # (..., 6) the F/T reading at rest at the start (force, torque; sensor frame)
-    board_pos: object  # (..., 2) true hole axis
+    hole_origin: object  # (..., 3) the true hole's axis at the board's bottom (`task.hole_frame`)
+    hole_axis: object  # (..., 3) the true hole's unit axis
     size: object  # (...,) hole size (m)
-    start_distance: object  # (...,) tip to `trial.destination` at the start (m)
+    start_distance: object  # (...,) tip to hole_origin at the start (m)
 
 
 class TrialState(NamedTuple):
@@ -109,11 +109,12 @@ class Outcome(NamedTuple):
     protective_stop: object
 
 
-def make_consts(skill: Skill, sensor_params, tare, board_pos, size, tip_pos) -> TrialConsts:
+def make_consts(skill: Skill, sensor_params, tare, hole_origin, hole_axis, size,
+                tip_pos) -> TrialConsts:  # fmt: skip
     """The constants of trials starting with the tip at `tip_pos` (..., 3)."""
-    xp = namespace_of(tip_pos, board_pos)
-    distance = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
-    return TrialConsts(skill, sensor_params, tare, board_pos, size, distance)
+    xp = namespace_of(tip_pos, hole_origin)
+    distance = xp.linalg.vector_norm(tip_pos - hole_origin, axis=-1)
+    return TrialConsts(skill, sensor_params, tare, hole_origin, hole_axis, size, distance)
 
 
 def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
@@ -139,7 +140,8 @@ def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, q
     physics_ok (...,) bool: the engine's own check of its step, if it has one (the C engine:
     MuJoCo did not reset the data)."""
     xp = namespace_of(tip_pos, qvel)
-    inside = is_success(tip_pos, consts.board_pos, consts.size, config.success_height)
+    inside = is_success(tip_pos, consts.hole_origin, consts.hole_axis, consts.size,
+                        config.success_height)  # fmt: skip
     # Too fast, NaN or infinite joint speeds fail the speed test alike.
     fast = ~(xp.max(xp.abs(qvel), axis=-1) < config.max_joint_speed)
     unstable = fast | ~xp.all(xp.isfinite(tip_pos), axis=-1)
@@ -160,7 +162,7 @@ def chatter(state: TrialState):
 def result(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos,
            end: Ends) -> Outcome:  # fmt: skip
     """What trials ending at this period record."""
-    reward = trial_reward(end.success, tip_pos, consts.board_pos, consts.start_distance,
+    reward = trial_reward(end.success, tip_pos, consts.hole_origin, consts.start_distance,
                           config.reward)  # fmt: skip
     return Outcome(end.success, tip_pos, state.peak_force, reward, end.unstable, state.step,
                    end.settled, chatter(state), state.stop)  # fmt: skip

@@ -96,9 +96,7 @@ class Sims:
         """Put trial `index` in simulation `sim`; the scratch MjData at the start (its sensors are
         the tare). The caller runs `forward` on the simulations it loaded."""
         m, d = self.trial_model, self.trial_data
-        s = specs
-        scene.start_trial(m, d, self.ids, s.board_pos[index], s.board_yaw[index],
-                          s.grasp_error[index], s.friction[index], s.q0[index])  # fmt: skip
+        scene.start_trial(specs, index, m, d, self.ids)
         for name, values in self.fields.items():
             values[sim] = getattr(m, name)
         mujoco.mj_getState(m, d, self.state[sim], STATE)

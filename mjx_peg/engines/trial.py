@@ -61,6 +61,10 @@ class TrialConfig:
     # learnable vector can make the compliance loop oscillate (the analysis in
     # skill/control_step.py: loop gains up to 190, latency up to 2 periods, 25-100 Hz filters).
     coupling_time_constant: float = 0.75
+    # N, N m: dead bands of the wrench the compliance acts on (control_step.deadband); 0: the
+    # paper's coupling
+    force_deadband: float = 0.0
+    moment_deadband: float = 0.0
     chatter_window_s: float = 1.0  # s: the chatter metric averages the last window of a trial
     # A failure whose outcome can no longer change ends at once, flagged `settled` (see
     # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
@@ -208,6 +212,8 @@ def control_config(config: TrialConfig, xp=np) -> ControlConfig:
         k_ref=config.dmp.k_ref,
         pinv_damping=config.pinv_damping,
         torque_limits=xp.asarray(TORQUE_LIMITS),
+        force_deadband=config.force_deadband,
+        moment_deadband=config.moment_deadband,
     )
 
 
@@ -219,23 +225,24 @@ def fitted_basis(config: dmp.DMPConfig) -> Basis:
     return Basis(np.asarray(weights), np.asarray(centers), np.asarray(widths))
 
 
-def destination(board_pos):
-    """(..., 3) where a successful tip ends: the true hole axis at the table top."""
-    xp = board_pos.__array_namespace__()
-    return xp.concat([board_pos, xp.zeros_like(board_pos[..., :1])], axis=-1)
+def is_success(tip_pos, hole_origin, hole_axis, size, success_height: float):
+    """(...,) bool: the tip passed the hole (inside its footprint) and is near the table.
 
-
-def is_success(tip_pos, board_pos, size, success_height: float):
-    """(...,) bool: the tip passed the hole (inside its footprint) and is near the table."""
+    Measured in the hole's frame (`task.hole_frame`: origin (..., 3) on the axis at the board's
+    bottom, unit axis (..., 3)): height along the axis < success_height, distance from it < size.
+    """
     xp = tip_pos.__array_namespace__()
-    lateral = xp.linalg.vector_norm(tip_pos[..., :2] - board_pos, axis=-1)
-    return (tip_pos[..., 2] < success_height) & (lateral < size)
+    offset = tip_pos - hole_origin
+    height = xp.sum(offset * hole_axis, axis=-1)
+    lateral = xp.linalg.vector_norm(offset - height[..., None] * hole_axis, axis=-1)
+    return (height < success_height) & (lateral < size)
 
 
-def trial_reward(success, tip_pos, board_pos, start_distance, reward: RewardConfig):
-    """(...,) paper-scale reward: `success` on success, else shaped by the tip's progress."""
+def trial_reward(success, tip_pos, hole_origin, start_distance, reward: RewardConfig):
+    """(...,) paper-scale reward: `success` on success, else shaped by the tip's progress
+    towards the hole's origin (on its axis at the board's bottom)."""
     xp = tip_pos.__array_namespace__()
-    d_end = xp.linalg.vector_norm(tip_pos - destination(board_pos), axis=-1)
+    d_end = xp.linalg.vector_norm(tip_pos - hole_origin, axis=-1)
     progress = xp.clip(1.0 - d_end / xp.maximum(start_distance, 1e-6), 0.0, 1.0)
     return xp.where(success, reward.success, reward.shaped * progress)
 

@@ -28,6 +28,7 @@ def main(argv=None) -> int:
         "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial (default 60)"
     )
     p.add_argument("--seed", type=cli.SEED, default=1, help="default 1")
+    cli.add_grasp_model_option(p, constants.GRASP_MODELS, "board")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     args = p.parse_args(argv)
     shapes = [s.strip() for s in args.shapes.split(",") if s.strip()]
@@ -38,7 +39,9 @@ def main(argv=None) -> int:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
     config = TrialConfig(time_limit_s=args.time_limit)
     tasks = [
-        TaskConfig.from_mm_deg((shape,), args.size, args.linear_mm, args.angular_deg)
+        TaskConfig.from_mm_deg(
+            (shape,), args.size, args.linear_mm, args.angular_deg, grasp_model=args.grasp_model
+        )  # fmt: skip
         for shape in shapes
     ]
     from mjx_peg.world import mujoco_log

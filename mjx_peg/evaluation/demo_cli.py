@@ -39,7 +39,7 @@ _DEFAULTS = {
 }
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
     p.add_argument("--shape", choices=constants.SHAPES, help=f"default {d['shape']}")
@@ -179,7 +179,7 @@ def _outcome(success, time_s) -> str:
 
 @cli.entry(PROG)
 def main(argv=None) -> int:
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     if args.replay is None:
         if args.range is not None or args.trial != "0":
             raise UsageError("--range and --trial need --replay EVAL_DIR")

@@ -40,6 +40,7 @@ from mjx_peg.evaluation.grid import (
     run_evaluation,
     write_outputs,
 )
+from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES
 
 
@@ -121,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="run every failure to the time limit, the paper's protocol (default: a failure "
         "that has settled, at rest or repeating the same motion, ends early; same outcome)",
     )
+    cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
@@ -198,6 +200,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         size_mm=args.size,
         time_limit_s=args.time_limit,
         full_time_limit=args.full_time_limit,
+        grasp_model=args.grasp_model,
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )

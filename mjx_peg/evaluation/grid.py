@@ -28,13 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, compat
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
+from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
 PROG = "eval.py"
@@ -70,12 +72,14 @@ _RESULT_FIELDS = (
     "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled",
     "chatter", "protective_stop",
 )  # fmt: skip
-# Evaluations from before early ending ran every failure to the time limit; those from before
-# credible contact (the F/T pipeline, the protective stop, the compliance damping) ran
-# another physics (contact_model 1) and recorded no contact metrics.
-_OLD_DEFAULTS = {"full_time_limit": True, "contact_model": 1}
-_CONTACT_FIELDS = ("chatter", "protective_stop")
+_CONTACT_FIELDS = ("chatter", "protective_stop")  # not recorded before contact_model 2
+_TIP_FIELD = "final_tip_pos"  # (trials, 3); ranges saved before the failure taxonomy lack it
 CONTACT_MODEL = 2  # the trial's physics and sensing (EvalConfig.contact_model)
+GRASP_DESCRIPTION = {
+    "board": "the board's height and tilt about its hole's entrance (the paper's model)",
+    "flange": "the peg's height and tilt in the flange (--grasp-model flange, harder than the "
+    "paper's)",
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,6 +102,8 @@ class EvalConfig:
     # The trial's physics and sensing: 2 since credible contact (the F/T pipeline, protective
     # stop and compliance damping); an evaluation made with 1 cannot be resumed.
     contact_model: int = CONTACT_MODEL
+    # Where the grasp errors go (constants.GRASP_MODELS): "board", the paper's, or "flange"
+    grasp_model: str = "board"
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -124,6 +130,10 @@ class EvalConfig:
             raise UsageError(f"size must be a positive number of mm, got {self.size_mm!r}")
         if self.engine not in ("mujoco", "mjx"):
             raise UsageError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
+        if self.grasp_model not in GRASP_MODELS:
+            raise UsageError(
+                f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
+            )
         if not isinstance(self.full_time_limit, bool):
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
@@ -155,8 +165,9 @@ class EvalConfig:
 def task_config(config: EvalConfig, shape: str, linear_mm: float, angular_deg: float):
     """The TaskConfig of one shape and error range of an evaluation (SI units)."""
     return TaskConfig.from_mm_deg(
-        (shape,), config.size_mm, linear_mm, angular_deg, time_limit_s=config.time_limit_s
-    )
+        (shape,), config.size_mm, linear_mm, angular_deg, time_limit_s=config.time_limit_s,
+        grasp_model=config.grasp_model,
+    )  # fmt: skip
 
 
 def grid_axes(
@@ -266,15 +277,12 @@ def range_specs(config: EvalConfig, index: int) -> TrialSpec:
 # The output directory.
 
 
-def _saved_config(path: Path) -> dict | None:
-    """The config of an evaluation's config.json, or None if it is not one."""
-    try:
-        doc = json.loads(path.read_text())
-        if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
-            return None
-        return doc["config"]
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return None
+def _recorded(doc: dict) -> dict:
+    """The config an evaluation's config.json records, with the defaults of fields added since;
+    ValueError if it is not an evaluation's."""
+    if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
+        raise ValueError(f"no {SCHEMA} config")
+    return compat.eval_config(doc["config"])
 
 
 def prepare_out_dir(
@@ -287,44 +295,19 @@ def prepare_out_dir(
     """Create out_dir with config.json, or check that its config.json equals `config` and that
     every range it holds reads (resume). With `force`, an evaluation directory (whatever its
     config) is moved aside and started anew; nothing else is ever replaced."""
-    out = Path(out_dir)
-    path = out / CONFIG_FILE
-    wanted = config.to_json()
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"{out} exists and is not a directory; use another --out")
-    if path.is_file():
-        saved = _saved_config(path)
-        if saved is None:
-            raise UsageError(f"{path} is not an evaluation config; use another --out")
-        saved = {**_OLD_DEFAULTS, **saved}
-        diff = [k for k in wanted if saved.get(k) != wanted[k]]
-        if force:
-            moved = cli.move_aside(out)
-            if note is not None:
-                note(f"--force: moved the earlier evaluation in {out} aside to {moved}")
-        elif diff:
-            k = diff[0]
-            raise UsageError(
-                f"{out} holds an evaluation with a different config ({k}: {saved.get(k)!r} "
-                f"there, {wanted[k]!r} now); use another --out or the same options, or pass "
-                "--force to move it aside and start over"
-            )
-        else:
-            for i in range(len(config.ranges)):
-                load_range(out, config, i)  # a corrupt file: one line naming it, up front
-            cli.write_atomic(path, path.read_bytes())  # writable (or one line), unchanged
-            return out
-    elif out.exists() and any(out.iterdir()):
-        raise UsageError(
-            f"{out} exists and is not an evaluation directory; use another --out (--force "
-            "replaces only an evaluation)"
-        )
-    cli.prepare_dir(out / RANGES_DIR)
-    doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "config": wanted}
+    out = OutDir(out_dir, CONFIG_FILE, "evaluation", read=_recorded)
+    plan = out.plan(config.to_json(), force)
+    if plan == "resume":
+        for i in range(len(config.ranges)):
+            load_range(out.path, config, i)  # a corrupt file: one line naming it, up front
+        out.prepare(plan)  # config.json rewritten unchanged: writable (or one line)
+        return out.path
+    doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "config": config.to_json()}
     if policy_dir is not None:
         doc["policy_dir"] = str(Path(policy_dir).resolve())
-    cli.write_atomic(path, json.dumps(doc, indent=2) + "\n")
-    return out
+    out.prepare(plan, doc, note)
+    cli.prepare_dir(out.path / RANGES_DIR)
+    return out.path
 
 
 def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
@@ -334,10 +317,8 @@ def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
         raise UsageError(f"{eval_dir} holds no {CONFIG_FILE}: not an evaluation directory")
     try:
         doc = json.loads(path.read_text())
-        if doc.get("schema") != SCHEMA:
-            raise ValueError
-        config = EvalConfig(**{**_OLD_DEFAULTS, **doc["config"]})
-    except (OSError, ValueError, KeyError, TypeError):
+        config = EvalConfig(**_recorded(doc))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         raise UsageError(f"{path} is not an mjx-peg evaluation config") from None
     return config, doc.get("policy_dir")
 
@@ -354,8 +335,7 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-        if "success" in arrays:  # saved before early ending existed: no trial settled
-            arrays.setdefault("settled", np.zeros(arrays["success"].shape, bool))
+        arrays = compat.range_results(arrays)
         # Saved before credible contact (contact_model 1): no contact metrics.
         optional = _CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
         missing = [k for k in _RESULT_FIELDS if k not in arrays and k not in optional]
@@ -422,7 +402,8 @@ def run_evaluation(
                 rows = slice(start, start + len(s))
                 arrays = {k: getattr(result, k)[rows] for k in _RESULT_FIELDS if k != "shape_id"}
                 arrays["shape_id"] = s.shape_id
-                cli.write_atomic(range_path(out, i), lambda p, a=arrays: np.savez(p, **a))
+                arrays[_TIP_FIELD] = result.final_tip_pos[rows]  # for the failure taxonomy
+                write_npz(range_path(out, i), arrays)
                 start += len(s)
             ran += len(result)
     return ran
@@ -507,6 +488,7 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
             if config.full_time_limit
             else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
         ),
+        f"grasp errors: {GRASP_DESCRIPTION[config.grasp_model]}",
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
@@ -555,8 +537,27 @@ def write_outputs(
         plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
     header = _header(out, config, grid, policy_label)
     text = es.summary_markdown(grid, header, paper_name, other, other_name, alternative)
-    cli.write_atomic(out / SUMMARY_FILE, text)
+    cli.write_atomic(out / SUMMARY_FILE, text + _failures_section(out, config))
     return grid
+
+
+def _failures_section(out: Path, config: EvalConfig) -> str:
+    """summary.md's failure taxonomy over every trial of the grid (`taxonomy`), if the ranges
+    recorded where each tip ended."""
+    from mjx_peg.evaluation import taxonomy
+
+    specs, arrays = [], []
+    for i in range(len(config.ranges)):
+        saved = load_range(out, config, i)
+        if _TIP_FIELD not in saved:
+            return ""
+        specs.append(range_specs(config, i))
+        arrays.append(saved)
+    fields = ("success", "unstable", "protective_stop", "settled", "steps", _TIP_FIELD)
+    merged = {k: np.concatenate([a[k] for a in arrays]) for k in fields}
+    trial = config.trial_config()
+    rows = taxonomy.table(TrialSpec.concat(specs), merged, trial.time_limit_s, trial.timestep)
+    return "\n## Failures\n\n" + taxonomy.markdown(rows, merged["success"].size)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -9,7 +9,6 @@ the paper's captions. Black lines mark the quarters.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
+from mjx_peg import cli  # noqa: E402
 from mjx_peg.evaluation.stats import (  # noqa: E402
     QUARTERS,
     GridTable,
@@ -174,9 +174,7 @@ def quarter_stats_by_metric(grid: GridTable) -> dict[str, tuple[list, list, list
 
 
 def _save(fig, path) -> Path:
-    path = Path(path)
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    try:
+        return cli.write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120))
+    finally:
+        plt.close(fig)

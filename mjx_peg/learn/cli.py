@@ -20,6 +20,7 @@ from mjx_peg import cli
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS
+from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
 
@@ -76,6 +77,7 @@ def parser() -> argparse.ArgumentParser:
         help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
+    cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -101,6 +103,7 @@ def resolve_config(args):
         "init_from": None if args.init_from is None else str(args.init_from),
         "full_time_limit": args.full_time_limit or None,
         "action_map": args.action_map,
+        "grasp_model": args.grasp_model,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:

@@ -17,6 +17,7 @@ import dataclasses
 import json
 import math
 
+from mjx_peg import compat
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
@@ -74,6 +75,9 @@ class TrainConfig:
     # True: every failed trial runs to the time limit; False: a failure that has settled ends
     # early with the same outcome (TrialConfig.end_settled)
     full_time_limit: bool = False
+    # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
+    # paper's); config.json files without it were "flange" (the peg in the gripper)
+    grasp_model: str = "board"
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -130,6 +134,7 @@ class TrainConfig:
             self.linear_mm,
             self.angular_deg,
             time_limit_s=self.time_limit_s,
+            grasp_model=self.grasp_model,
             sensor_cutoff_scale=tuple(self.sensor_cutoff_scale),
             sensor_noise_scale=tuple(self.sensor_noise_scale),
             sensor_delay_offset=tuple(self.sensor_delay_offset),
@@ -154,7 +159,7 @@ class TrainConfig:
         unknown = set(data) - names
         if unknown:
             raise UsageError(f"config.json has unknown fields {sorted(unknown)}")
-        return cls(**{"action_map": "sigmoid", **data})  # written before the field existed
+        return cls(**compat.train_config(data))
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n"

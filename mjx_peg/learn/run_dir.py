@@ -13,15 +13,15 @@ trial count, so a killed run's curve continues without gaps or duplicates.
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
 from pathlib import Path
-
-import orbax.checkpoint as ocp
 
 from mjx_peg import cli
 from mjx_peg.errors import UsageError
+from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
+from mjx_peg.outdir import OutDir
 from mjx_peg.policy.export import MANIFEST_FILE, POLICY_FILE
 
 METRICS_COLUMNS = (
@@ -54,6 +54,11 @@ _ADDED_METRICS = (
 KEEP_CHECKPOINTS = 3
 
 
+def _recorded(doc: dict) -> dict:
+    """The config a run's config.json records, with the defaults of fields added since."""
+    return TrainConfig.from_json(doc).to_json()
+
+
 class RunDir:
     """Paths and bookkeeping of one run directory."""
 
@@ -66,6 +71,7 @@ class RunDir:
         self.policy_path = self.path / POLICY_FILE
         self.manifest_path = self.path / MANIFEST_FILE
         self.curve_path = self.path / "training_curve.png"
+        self.out = OutDir(self.path, self.config_path.name, "training run", read=_recorded)
 
     def is_finished(self) -> bool:
         try:
@@ -84,56 +90,24 @@ class RunDir:
     def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
         """What `prepare` will do, decided without touching anything: "new" (an empty or absent
         directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:
-        it is moved aside); ValueError (one line) for everything else."""
+        it is moved aside); UsageError (one line) for everything else."""
         if init_from is not None:
             cli.check_apart(self.path, {"--init-from": init_from})
-        if self.path.exists() and not self.path.is_dir():
-            raise UsageError(f"--out {self.path} exists and is not a directory")
-        if not self.path.is_dir() or not any(self.path.iterdir()):
-            return "new"
-        if not self.config_path.is_file():
-            raise UsageError(
-                f"--out {self.path} is not empty and holds no training run; choose another "
-                "directory (--force replaces only a training run)"
-            )
-        previous = self.read_config()  # a config.json that is not a run's: ValueError
-        if force:
-            return "replace"
-        if self.is_finished():
+        plan = self.out.plan(config.to_json(), force)
+        if plan == "resume" and self.is_finished():
             raise UsageError(
                 f"--out {self.path} holds a finished run; pass --force to move it aside and "
                 "start over"
             )
-        if previous != config:
-            changed = sorted(
-                k for k, v in config.to_json().items() if previous.to_json().get(k) != v
-            )
-            raise UsageError(
-                f"--out {self.path} holds an unfinished run with a different config "
-                f"({', '.join(changed)} differ); rerun it with the same options, or pass "
-                "--force to move it aside and start over"
-            )
-        return "resume"
+        return plan
 
-    def prepare(self, config: TrainConfig, plan: str) -> Path | None:
-        """Carry out `plan` (from `plan()`): move a replaced run aside, create the directory,
-        (re)write config.json atomically (which proves the directory writable); returns where
-        a replaced run went."""
-        moved = None
-        if plan == "replace":
-            moved = cli.move_aside(self.path)
-        if plan != "resume":
-            cli.prepare_dir(self.path)
-        cli.write_atomic(self.config_path, config.dumps())
-        return moved
+    def prepare(self, config: TrainConfig, plan: str, note=None) -> Path | None:
+        """Carry out `plan` (from `plan()`): move a replaced run aside (`note` is told where),
+        create the directory, (re)write config.json; returns where a replaced run went."""
+        return self.out.prepare(plan, config.dumps(), note)
 
-    def checkpoints(self) -> ocp.CheckpointManager:
-        return ocp.CheckpointManager(
-            self.checkpoint_dir.absolute(),
-            options=ocp.CheckpointManagerOptions(
-                max_to_keep=KEEP_CHECKPOINTS, enable_async_checkpointing=False
-            ),
-        )
+    def checkpoints(self) -> Checkpoints:
+        return Checkpoints(self.checkpoint_dir, keep=KEEP_CHECKPOINTS)
 
     def start_tables(self) -> None:
         tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS))
@@ -165,10 +139,9 @@ class RunDir:
                     f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
                     "aside (--force) to start over"
                 ) from None
-            tmp = path.with_suffix(".tmp")
-            with open(tmp, "w", newline="") as f:
-                csv.writer(f).writerows([header] + kept)
-            os.replace(tmp, path)
+            text = io.StringIO(newline="")
+            csv.writer(text).writerows([header] + kept)
+            cli.write_atomic(path, text.getvalue())
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
         with open(self.trials_path, "a", newline="") as f:

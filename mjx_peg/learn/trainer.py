@@ -17,12 +17,12 @@ from pathlib import Path
 import jax
 import jax.experimental.multihost_utils
 import numpy as np
-import orbax.checkpoint as ocp
 
 from mjx_peg import cli
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
-from mjx_peg.learn import ppo, restore_noise
+from mjx_peg.learn import checkpoints, ppo
+from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
 from mjx_peg.learn.env import InsertionEnv
@@ -50,46 +50,8 @@ class TrainSummary:
         )
 
 
-def _flat(state) -> dict[str, np.ndarray]:
-    """The state's leaves as host NumPy arrays, keyed by position.
-
-    Saved this way rather than as the TrainingState itself: some leaves (Brax's UInt64 step
-    count) turn themselves back into device arrays, which Orbax refuses to write from several
-    processes; plain NumPy leaves work with one process or many.
-    """
-    return {f"{i:03d}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(state))}
-
-
-def _save(manager: ocp.CheckpointManager, state: ppo.TrainingState) -> None:
-    manager.save(int(state.iteration), args=ocp.args.StandardSave(_flat(state)))
-    manager.wait_until_finished()
-
-
-def _restore(manager: ocp.CheckpointManager, template: ppo.TrainingState, step=None):
-    step = manager.latest_step() if step is None else step
-    abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(template))
-    restore_noise.expect_failed_reads(manager.directory)
-    try:
-        flat = manager.restore(step, args=ocp.args.StandardRestore(abstract))
-        leaves = [np.asarray(flat[k]) for k in sorted(flat)]
-        if len(leaves) != len(jax.tree.leaves(template)):
-            raise UsageError(f"{len(leaves)} arrays, the run's state has another number")
-        state = jax.tree.unflatten(jax.tree.structure(template), leaves)
-    except Exception as e:  # a corrupt or truncated checkpoint can fail anywhere inside Orbax
-        text = cli.message(e).split(" [tensorstore_spec=")[0]
-        text = text if len(text) <= 300 else text[:297] + "..."
-        where = Path(manager.directory) / str(step)
-        raise UsageError(
-            f"checkpoint {where} is corrupt or truncated ({type(e).__name__}: {text})"
-        ) from None
-    return state
-
-
-def _has_checkpoint(run: RunDir) -> bool:
-    """Whether the run directory holds a finished checkpoint (without creating anything)."""
-    return run.checkpoint_dir.is_dir() and any(
-        p.name.isdigit() for p in run.checkpoint_dir.iterdir()
-    )
+def _save(saved: Checkpoints, state: ppo.TrainingState) -> None:
+    saved.save(int(state.iteration), state)
 
 
 def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
@@ -103,13 +65,10 @@ def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.Training
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
             f"this run {config.policy_hidden}/{config.value_hidden}"
         )
-    manager = source.checkpoints()
-    try:
-        if manager.latest_step() is None:
+    with source.checkpoints() as saved:
+        if saved.latest_step() is None:
             raise UsageError(f"--init-from {source.path} holds no checkpoint")
-        restored = _restore(manager, ppo.init_state(other, ppo.make_networks(other)))
-    finally:
-        manager.close()
+        restored = saved.restore(ppo.init_state(other, ppo.make_networks(other)))
     return template.replace(
         params=restored.params,
         normalizer_params=restored.normalizer_params,
@@ -133,7 +92,8 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
             "trainer": "brax PPO (mjx_peg/learn/ppo.py)",
         },
     )
-    plot_training_curve(run.trials_path, run.curve_path, title=f"{config.preset}: {run.path.name}")
+    title = f"{config.preset}: {run.path.name}"
+    cli.write_atomic(run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title))
 
 
 def train(
@@ -163,14 +123,12 @@ def train(
     primary = jax.process_index() == 0
     plan = run.plan(config, force, config.init_from) if primary else "resume"
     state = ppo.init_state(config, ppo.make_networks(config))
-    resuming = plan == "resume" and _has_checkpoint(run)
+    resuming = plan == "resume" and checkpoints.has_steps(run.checkpoint_dir)
     initial = None
     if config.init_from and not resuming:
         initial = _load_init(config, state)  # read before `out` is touched
     if primary:
-        moved = run.prepare(config, plan)
-        if moved is not None and note is not None:
-            note(f"--force: moved the earlier run in {run.path} aside to {moved}")
+        run.prepare(config, plan, note)
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
     env = InsertionEnv(
@@ -179,7 +137,7 @@ def train(
     manager = run.checkpoints()
     if plan == "resume" and manager.latest_step() is not None:
         try:
-            state = _restore(manager, state)
+            state = manager.restore(state)
         except BaseException:
             manager.close()
             raise
@@ -304,14 +262,10 @@ def load_state(run_dir) -> tuple[TrainConfig, ppo.TrainingState]:
     """The config and the latest checkpointed TrainingState of a run directory."""
     run = RunDir(run_dir)
     config = run.read_config()
-    manager = run.checkpoints()
-    try:
-        if manager.latest_step() is None:
+    with run.checkpoints() as saved:
+        if saved.latest_step() is None:
             raise UsageError(f"{run.path} holds no checkpoint")
-        template = ppo.init_state(config, ppo.make_networks(config))
-        return config, _restore(manager, template)
-    finally:
-        manager.close()
+        return config, saved.restore(ppo.init_state(config, ppo.make_networks(config)))
 
 
 __all__ = ["InsertionEnv", "TrainSummary", "load_state", "train"]

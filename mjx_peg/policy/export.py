@@ -16,13 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import compat
 from mjx_peg.errors import UsageError
+from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.policy import network, observation
 from mjx_peg.skill import params
 
@@ -89,7 +90,7 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
     ranges = manifest["action"]["ranges"]
     if not isinstance(ranges, dict):
         raise PolicyError(f"{where}: action.ranges is not an object")
-    kind = ranges.get("map", "sigmoid")
+    kind = ranges.get("map", compat.MANIFEST_ACTION_MAP)
     if kind == "sigmoid":
         return None
     if kind != "centred":
@@ -109,7 +110,7 @@ def save_policy(
     extra: dict | None = None,
     centre=None,
 ) -> Path:
-    """Write `policy.npz` + `manifest.json` into run_dir (atomically: temp files, then rename)."""
+    """Write `policy.npz` + `manifest.json` into run_dir, each atomically."""
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     arrays = {
@@ -140,12 +141,8 @@ def save_policy(
         "config": config,
         **(extra or {}),
     }
-    tmp_npz = run_dir / (POLICY_FILE + ".tmp.npz")
-    np.savez(tmp_npz, **arrays)
-    os.replace(tmp_npz, run_dir / POLICY_FILE)
-    tmp_json = run_dir / (MANIFEST_FILE + ".tmp")
-    tmp_json.write_text(json.dumps(manifest, indent=2) + "\n")
-    os.replace(tmp_json, run_dir / MANIFEST_FILE)
+    write_npz(run_dir / POLICY_FILE, arrays)
+    write_json(run_dir / MANIFEST_FILE, manifest)
     return run_dir / POLICY_FILE
 
 

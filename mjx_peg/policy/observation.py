@@ -104,5 +104,8 @@ def privileged(loc_error, grasp_error, friction):
 
 
 def privileged_specs(specs):
-    """(B, 8) NumPy critic-only features of a `task.TrialSpec`."""
-    return privileged(specs.loc_error, specs.grasp_error, specs.friction)
+    """(B, 8) NumPy critic-only features of a `task.TrialSpec`; its grasp errors wherever the
+    trial applied them (the peg's pose in the flange, or the board's height and tilt)."""
+    xp = namespace_of(specs.grasp_error)
+    board = xp.concat([specs.board_height[:, None], specs.board_tilt], axis=1)
+    return privileged(specs.loc_error, specs.grasp_error + board, specs.friction)

@@ -32,6 +32,7 @@ from mjx_peg.policy.export import load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.world import constants
+from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 PROG = "python -m mjx_peg.robot"
@@ -43,7 +44,7 @@ COLUMNS = ("trial", "success", "time_s", "commands", "stopped", "protective_stop
 RESULTS = "runs.csv"
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="baseline", help="RUN_DIR holding policy.npz, or baseline")
     p.add_argument("--shape", choices=constants.SHAPES, default="circle")
@@ -52,6 +53,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0, help="± angular error range")
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
+    cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
@@ -135,7 +137,8 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
 
 def _setup(args):
     steps = command_steps(args.command_hz, args.time_limit)
-    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
+    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
+                                  grasp_model=args.grasp_model)  # fmt: skip
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     if args.policy != "baseline" and not Path(args.policy).exists():
@@ -154,7 +157,7 @@ def _has_rows(path: Path) -> bool:
 
 @cli.entry(PROG)
 def main(argv=None) -> int:
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     real = args.robot_ip is not None or args.dry_run or args.rehearse
     if real or args.shadow or args.hole:
         if args.robot_ip is not None:

@@ -17,7 +17,7 @@ included, it cannot insert any more; a failure, as the engines end it, stopped "
 math runs on arrays with a leading batch dimension of 1, the engines' code path: on the simulated
 arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and ends as it does (the
 wrench can differ from the engine's in the last bit, which contact can amplify;
-tests/test_robot.py).
+tests/robot/test_runtime.py).
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.robot.arm import ArmState
 from mjx_peg.skill import sensor
 from mjx_peg.world import constants, scene
-from mjx_peg.world.task import TrialSpec
+from mjx_peg.world.task import TrialSpec, hole_frame
 
 
 class SimArm:
@@ -42,13 +42,12 @@ class SimArm:
         if not 0 <= index < len(specs):
             raise UsageError(f"trial index {index} is outside the {len(specs)} trials")
         s = specs.take([index])
-        self.board_pos, self.size = s.board_pos[0], float(s.size[0])
+        self.size = float(s.size[0])
+        (self.hole_origin,), (self.hole_axis,) = hole_frame(s)
         self.model = m = scene.load_model(constants.SHAPES[int(s.shape_id[0])], self.size)
         self.data = d = mujoco.MjData(m)
         self.ids = ids = scene.scene_ids(m)
-        scene.start_trial(
-            m, d, ids, s.board_pos[0], s.board_yaw[0], s.grasp_error[0], s.friction[0], s.q0[0]
-        )
+        scene.start_trial(s, 0, m, d, ids)
         self.hold_torque = d.ctrl[ids.actuator_ids].copy()
         self.command_steps = command_steps
         self.period = command_steps * float(m.opt.timestep)
@@ -133,4 +132,5 @@ class SimArm:
 
     def inserted(self, state: ArmState | None = None) -> bool:
         """The trial's success test on the true tip (as the engines judge it)."""
-        return bool(is_success(self.tip_pos(), self.board_pos, self.size, self.success_height))
+        return bool(is_success(self.tip_pos(), self.hole_origin, self.hole_axis, self.size,
+                               self.success_height))  # fmt: skip

@@ -122,6 +122,8 @@ def rehearsal_robot(hole: HoleEstimate, q_start, seed: int):
             friction=[0.5],
             loc_error=np.zeros((1, 3)),
             grasp_error=np.zeros((1, 3)),
+            board_height=[0.0],
+            board_tilt=np.zeros((1, 2)),
             hole_est_pos=one(hole.x, hole.y),
             hole_est_yaw=[hole.yaw],
             tcp0_pos=start,

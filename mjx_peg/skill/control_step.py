@@ -29,7 +29,7 @@ loop gain C Lambda K_y / tau the loop closes as
     z^(d-1) (z - a_s)(z - a_c) + L (1 - a_s)(1 - a_c) = 0     (times z when d = 0)
 
 and is stable iff every root lies inside the unit circle (`coupling_loop_radius`,
-`max_stable_loop_gain`; tests/test_stability.py checks them against the simulated loop):
+`max_stable_loop_gain`; tests/skill/test_stability.py checks them against the simulated loop):
 - without filters or latency (the engines before the sensor pipeline) the root is z = -L: the
   force alternates every 2 ms step (250 Hz) and grows once L > 1. This is the chatter measured
   on the first hand-tuned baseline (k_t = 300, C_zz = 1e-3 m/N, Lambda_zz = 5.9-8.8 kg over
@@ -42,7 +42,7 @@ The learnable vectors reach L = 190 (k_t = k_theta = 1000 with the compliance at
 worst signs of its couplings, over Lambda at the goal across the workspace; the diagonal alone 81;
 the first baseline 12-14, the re-tuned one 84). T_c = 0.75 s keeps every one of them stable for the
 nominal sensor and for the whole training randomization (latency 0-2 periods, filters of 25-100
-Hz): the largest stable L is 376-378 at d <= 1 and 202-221 at d = 2 (tests/test_stability.py).
+Hz): the largest stable L is 376-378 at d <= 1 and 202-221 at d = 2 (tests/skill/test_stability.py).
 Measurements behind T_c (success and chatter against T_c, what the damping costs at the first
 press): docs/compliance_loop.md.
 
@@ -155,6 +155,31 @@ class ControlConfig(NamedTuple):
     k_ref: float  # 1/s^2, stiffness the forcing term was fitted at (dmp.scaled_modified_goal)
     pinv_damping: float  # damping of J+ near singularities
     torque_limits: object  # (n,) N m, symmetric joint torque limits
+    # N and N m: the compliance ignores this much of the wrench's force and moment (`deadband`);
+    # 0: the paper's literal coupling
+    force_deadband: float = 0.0
+    moment_deadband: float = 0.0
+
+
+def _shrink(v, width: float):
+    """v (..., 3) moved towards 0 by `width` in norm, 0 within it: v max(0, 1 - width / |v|)."""
+    xp = v.__array_namespace__()
+    norm = xp.linalg.vector_norm(v, axis=-1, keepdims=True)
+    return v * xp.maximum(1.0 - width / xp.maximum(norm, 1e-12), 0.0)
+
+
+def deadband(wrench, force: float, moment: float):
+    """(..., 6) the wrench the compliance acts on: its force and its moment each shrunk by a
+    dead band of radius `force` (N) and `moment` (N m); zero width leaves it as it is.
+
+    An extension of the paper's coupling (README, changes): what a tared F/T sensor reports in
+    free motion (a residual bias of up to 1 N and 0.1 N m per axis, the peg's inertia) would
+    otherwise move the goal by C F, several mm at the baseline's 1.8e-3 m/N, before any contact.
+    """
+    if force == 0.0 and moment == 0.0:
+        return wrench
+    xp = wrench.__array_namespace__()
+    return xp.concat([_shrink(wrench[..., :3], force), _shrink(wrench[..., 3:], moment)], axis=-1)
 
 
 def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measurement):
@@ -163,7 +188,8 @@ def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measur
     y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
     s = dmp.phase(meas.t, config.tau, config.alpha_s)
     f = dmp.forcing(s, basis.weights, basis.centers, basis.widths)
-    dy = dmp.compliance_offset(skill.compliance, meas.wrench)
+    wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
+    dy = dmp.compliance_offset(skill.compliance, wrench)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)

@@ -24,10 +24,9 @@ duration T (`DMPConfig.duration`), during which the phase decays from 1 to exp(-
 (`DMPConfig.phase_span`). tau stays 1 s, so the learned gains keep their meaning (K = omega^2);
 T = 2 s (not 1 s) slows the approach so that the peg meets the board gently: the minimum-jerk
 profile of the 120-160 mm descent peaks at 1.9 x travel / T, and the first impact's force grows
-with the speed (measured: median/p99 peak sensed force 113/155 N at T = 1 s, 58/83 N at 2 s,
-square 50 mm, +-3 mm / +-4 deg, the hand-tuned baseline; the UR5e protective-stops at 150 N). The
-forcing weights w_i are not learned: `fit_minimum_jerk_weights` fits them once, by locally
-weighted regression, for the reference stiffness `k_ref`.
+with the speed (docs/compliance_loop.md, "The approach's duration"). The forcing weights w_i
+are not learned: `fit_minimum_jerk_weights` fits them once, by locally weighted regression, for
+the reference stiffness `k_ref`.
 
 Everything except the NumPy-only fitting and `rollout` is written over the array-API namespace
 of the inputs and batched over leading dimensions; this module imports neither numpy nor jax.

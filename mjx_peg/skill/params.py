@@ -7,10 +7,9 @@ section 3.3: positive gains, compliance within physical ranges), for every input
 - `controller_from_centred_action` (training's default): action 0 is a given
   centre (the baseline), and each number leaves it in both directions with the slope the
   sigmoid map has in the middle of its range, approaching the range's edges like tanh.
-- `controller_from_action` (the sigmoid map, every run before): action 0 is the middle of each
-  range. A centre near an edge sits where the sigmoid is flat: the re-tuned baseline's k = 900
-  (sigmoid 0.977) and C_xyz = 1.8e-3 m/N (0.9 of the bound) moved ~4 % for an exploration std of
-  0.4, and PPO started there did not move them.
+- `controller_from_action` (the sigmoid map): action 0 is the middle of each range; a centre
+  near an edge sits where the sigmoid is flat (why the centred map exists:
+  docs/baseline_tuning.md, "The action maps").
 
 Order of the 38 numbers, in both the action and the physical vector:
 
@@ -33,11 +32,6 @@ Ranges (`DEFAULT_RANGES`), from the physics of a 50 mm peg in a hole with 0.75-2
   at 5-10 N.
 - rotational compliance diagonal in [0, 0.1] rad/(N m): contact torques of 0.5-5 N m then yield
   up to 0.05-0.5 rad, covering the ~0.2 rad (12 deg) grasp tilts of the paper.
-- The first hand-tuned baseline (1e-3 m/N, 0.05 rad/(N m)) sat in the middle of both, where the
-  sigmoid map is most sensitive. (With the first ranges, [0, 1e-3] and [0, 0.05], it sat at
-  their saturated edge: PPO started there barely moved, while stiffer z (5e-4) or twice the
-  coupling measured 68 % and 61 % against 56 %.) The baseline re-tuned for credible contact
-  (skill/baseline.py) sits near the top of the k and C_xyz ranges, hence the centred map.
 - Diagonal entries stay >= 0: positive compliance yields to the contact; a negative one would
   push into it (positive feedback on the contact force).
 - Off-diagonal entries in +-OFF_DIAGONAL_FRACTION (0.5) * sqrt(Cmax_ii Cmax_jj): the geometric

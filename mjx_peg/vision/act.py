@@ -62,9 +62,11 @@ def draw_trials(shape: str, size: float, count: int, seed: int) -> TrialSpec:
     )
     specs = sample_trials(task, np.random.default_rng([seed, SHAPES.index(shape)]), count)
     arrays = specs.to_arrays()
+    height_scale = GRASP_DZ_FRACTION * (size / 2.0) / (LOC_MM / 1000.0)  # +-8 mm -> +-30 % S/2
     grasp = arrays["grasp_error"].copy()
-    grasp[:, 0] *= GRASP_DZ_FRACTION * (size / 2.0) / (LOC_MM / 1000.0)  # +-8 mm -> +-30 % S/2
+    grasp[:, 0] *= height_scale  # the flange model's grasp height; the board model's below
     arrays["grasp_error"] = grasp
+    arrays["board_height"] = arrays["board_height"] * height_scale
     return TrialSpec.from_arrays(arrays).validate()
 
 

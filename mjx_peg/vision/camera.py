@@ -19,7 +19,7 @@ The calibration file (JSON; every length in m, angles never appear):
 
 A MuJoCo camera (frame: x right, y up, looking along -z; vertical field of view fovy) is the
 pinhole with fx = fy = (height / 2) / tan(fovy / 2), cx = (width - 1) / 2, cy = (height - 1) / 2
-and R_base_camera = R_mujoco diag(1, -1, -1) (`from_mujoco`; tests/test_vision.py checks a
+and R_base_camera = R_mujoco diag(1, -1, -1) (`from_mujoco`; tests/vision/test_vision.py checks a
 rendered marker against it to a pixel).
 """
 

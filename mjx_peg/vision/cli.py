@@ -58,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--height", type=PIXELS, default=960, help="default 960")
     r.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
     r.add_argument("--sizes", default="25,50,60", help="sizes S in mm, of 25, 50, 60")
-    _force(r, "a split made with other options")
+    _force(r, "an earlier split (any options)")
 
     t = sub.add_parser("train", help="train the localizer (CPU), export npz + json")
     t.add_argument("--data", type=path, required=True, help="training split")
@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--batch", type=cli.integer(1, 4096), help="default 64")
     t.add_argument("--crops", type=cli.integer(1, 64), help="hole views per image, default 4")
     t.add_argument("--seed", type=cli.SEED, help="default 0")
-    _force(t, "a localizer trained with other options")
+    _force(t, "an earlier localizer (any options)")
 
     e = sub.add_parser("evaluate", help="error percentiles of a localizer on a split")
     e.add_argument("--model", type=path, default=DEFAULT_MODEL)
@@ -112,20 +112,8 @@ def _warn_gl() -> None:
         cli.note(PROG, f"warning: {gl.fallback_note()}")
 
 
-def _prepare_or_move(prepare, other: type[Exception], out: Path, config, force: bool) -> None:
-    """prepare(out, config); where --out holds other work, refuse, or with --force move it aside
-    and prepare afresh."""
-    try:
-        prepare(out, config)
-    except other as exc:
-        if not force:
-            raise UsageError(f"{exc}: choose another --out, the same options, or --force") from None
-        cli.note(PROG, f"--force: moved {out} aside to {cli.move_aside(out)}")
-        prepare(out, config)
-
-
 def _render(args) -> str:
-    from mjx_peg.vision.dataset import OtherSplit, SplitConfig, prepare_split, render_split
+    from mjx_peg.vision.dataset import SplitConfig, prepare_split, render_split
     from mjx_peg.world import mujoco_log
 
     sizes = []
@@ -143,7 +131,7 @@ def _render(args) -> str:
         shapes=_csv(args.shapes),
         sizes_mm=tuple(sizes),
     )
-    _prepare_or_move(prepare_split, OtherSplit, args.out, config, args.force)
+    prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
     mujoco_log.send_to(args.out)
     _warn_gl()
     n = render_split(args.out, config, progress=not args.no_progress)
@@ -154,7 +142,7 @@ def _train(args) -> str:
     import dataclasses
 
     from mjx_peg.vision.dataset import split_config
-    from mjx_peg.vision.training import OtherModel, VisionTrainConfig, prepare_out, train
+    from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
     cli.check_apart(args.out, {"--data": args.data, "--val": args.val})
     split_config(args.data)  # a split, before any work
@@ -163,7 +151,7 @@ def _train(args) -> str:
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
-    _prepare_or_move(prepare_out, OtherModel, args.out, config, args.force)
+    prepare_out(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
     loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"

@@ -30,6 +30,7 @@ import numpy as np
 
 from mjx_peg import cli
 from mjx_peg.errors import UsageError
+from mjx_peg.outdir import OutDir, write_json
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.randomize import (
     CONDITIONS,
@@ -44,10 +45,6 @@ from mjx_peg.vision.randomize import (
 from mjx_peg.world import constants
 
 SCHEMA = "mjx-peg-vision-split"
-
-
-class OtherSplit(UsageError):
-    """--out holds something else than this split (another config, or not a split)."""
 
 
 MANIFEST = "manifest.json"
@@ -154,10 +151,6 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         raise UsageError(f"cannot read image {path}: not an image file") from None
 
 
-def _json_write(path: Path, doc: dict) -> None:
-    cli.write_atomic(path, json.dumps(doc) + "\n")
-
-
 @dataclass(frozen=True)
 class SplitConfig:
     count: int
@@ -190,31 +183,23 @@ class SplitConfig:
         return doc | {"shapes": list(self.shapes), "sizes_mm": list(self.sizes_mm)}
 
 
-def prepare_split(out, config: SplitConfig) -> Path:
-    """Create the split directory with its manifest, or check that it matches `config`."""
-    out = Path(out)
-    path = out / MANIFEST
+def _recorded(doc: dict) -> dict:
+    """The SplitConfig a manifest records, as JSON; ValueError if it is not a split's."""
+    if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
+        raise ValueError(f"no {SCHEMA} manifest")
+    # splits made before these options existed
+    return {"shapes": list(SHAPES), "sizes_mm": list(SIZES_MM), **doc["config"]}
+
+
+def prepare_split(out, config: SplitConfig, force: bool = False, note=None) -> Path:
+    """Create the split directory with its manifest, or resume a split of the same config (its
+    image count may change); with `force` a split of any config is moved aside (`note` is told
+    where)."""
+    split = OutDir(out, MANIFEST, "vision split", read=_recorded, ignore=("count",))
+    plan = split.plan(config.to_json(), force)
     doc = {"schema": SCHEMA, "config": config.to_json()}
-    if path.is_file():
-        try:
-            saved = json.loads(path.read_text())["config"]
-        except (OSError, ValueError, KeyError, TypeError):
-            raise OtherSplit(f"{path} is not a vision split manifest") from None
-        saved.setdefault("shapes", list(SHAPES))  # splits made before these options existed
-        saved.setdefault("sizes_mm", list(SIZES_MM))
-        for key in ("seed", "condition", "width", "height", "shapes", "sizes_mm"):
-            if saved.get(key) != doc["config"][key]:
-                raise OtherSplit(
-                    f"{out} holds a split with {key} {saved.get(key)!r}, not {doc['config'][key]!r}"
-                )
-        if saved.get("count") != config.count:  # growing or shrinking a split is fine
-            _json_write(path, doc)
-        return out
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise OtherSplit(f"{out} exists and is not a vision split")
-    out.mkdir(parents=True, exist_ok=True)
-    _json_write(path, doc)
-    return out
+    split.prepare(plan, json.dumps(doc) + "\n", note)
+    return split.path
 
 
 def render_split(out, config: SplitConfig, progress: bool = True) -> int:
@@ -237,7 +222,7 @@ def render_split(out, config: SplitConfig, progress: bool = True) -> int:
         for k in todo:
             board, view = draw(config, k)
             _png_write(out / f"{k:06d}.png", renderer.image(board, view))
-            _json_write(out / f"{k:06d}.json", make_label(board, view))
+            write_json(out / f"{k:06d}.json", make_label(board, view), indent=None)
             bar.update(1)
     return len(todo)
 
@@ -248,14 +233,8 @@ def split_config(split_dir) -> SplitConfig:
     if not path.is_file():
         raise UsageError(f"{split_dir} holds no {MANIFEST}: not a vision split")
     try:
-        doc = json.loads(path.read_text())
-        if doc.get("schema") != SCHEMA:
-            raise ValueError
-        saved = doc["config"]
-        saved.setdefault("shapes", list(SHAPES))  # splits made before these options existed
-        saved.setdefault("sizes_mm", list(SIZES_MM))
-        return SplitConfig(**saved)
-    except (OSError, ValueError, KeyError, TypeError):
+        return SplitConfig(**_recorded(json.loads(path.read_text())))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         raise UsageError(f"{path} is not a vision split manifest") from None
 
 

@@ -2,7 +2,7 @@
 
 Two small CNNs, described by a JSON-able architecture and run here from a flat dict of arrays
 (`model.npz`); `nets.py` builds the same networks in Flax for training, with the same parameter
-names, and tests/test_vision.py checks that both agree.
+names, and tests/vision/test_vision.py checks that both agree.
 
 - detector (coarse view, (B, 128, 216, 3) -> (B, 16, 27, 3)): six 3x3 convolutions (ReLU; stride
   2 three times; receptive field 55 px = 330 mm, a whole board), then a 1x1 head per 48 mm

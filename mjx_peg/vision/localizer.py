@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg.errors import UsageError
+from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.robot.runtime import HoleEstimate
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
@@ -122,10 +123,11 @@ class Localizer:
         return cls(config, params)
 
     def save(self, model_dir: str | os.PathLike) -> Path:
+        """Write model.npz + model.json into model_dir, each atomically."""
         model_dir = Path(model_dir)
         model_dir.mkdir(parents=True, exist_ok=True)
-        np.savez(model_dir / MODEL_NPZ, **self.params)
-        (model_dir / MODEL_JSON).write_text(json.dumps(self.config, indent=2) + "\n")
+        write_npz(model_dir / MODEL_NPZ, self.params)
+        write_json(model_dir / MODEL_JSON, self.config)
         return model_dir
 
     # --- the two stages -----------------------------------------------------------------------

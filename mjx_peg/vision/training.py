@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg.errors import UsageError
+from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
@@ -159,9 +159,7 @@ def cached_views(
             return {k: npz[k] for k in npz.files}
     arrays = build_views(items, views, crops, crop_offset_m, seed, progress)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    tmp.replace(path)
+    write_npz(path, arrays)
     return arrays
 
 
@@ -188,7 +186,7 @@ def mirror_encoding(enc, flip_rows, flip_cols):
 
     One mirror turns a square's yaw into -yaw (mod 90 deg) and a triangle's into -yaw (x -> -x)
     or 60 deg - yaw (y -> -y) (mod 120 deg); both mirrors are a half turn, which leaves the
-    square alone and adds 60 deg (mod 120) to the triangle. tests/test_vision.py checks this
+    square alone and adds 60 deg (mod 120) to the triangle. tests/vision/test_vision.py checks this
     against the mirrored outlines.
     """
     one = (flip_rows ^ flip_cols)[:, None].astype(np.float32)
@@ -294,46 +292,15 @@ def init_params(module, input_shape: tuple[int, ...], rng: np.random.Generator) 
     return params
 
 
-def _flat(tree) -> dict[str, np.ndarray]:
-    import jax
-
-    return {f"{i:04d}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(tree))}
-
-
-def _unflat(template, flat):
-    import jax
-
-    leaves = [np.asarray(flat[k]) for k in sorted(flat)]
-    return jax.tree.unflatten(jax.tree.structure(template), leaves)
-
-
 # --- the loop ------------------------------------------------------------------------------------
 
 
-class OtherModel(UsageError):
-    """--out holds something else than this training run (another config, or not a model)."""
-
-
-def prepare_out(out: Path, config: VisionTrainConfig) -> None:
-    """Create --out with train_config.json, or check that it holds the same config."""
-    path = out / CONFIG_FILE
-    if path.is_file():
-        try:
-            saved = json.loads(path.read_text())
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise UsageError(f"{path} is not a localizer training config ({exc})") from None
-        if not isinstance(saved, dict):
-            raise UsageError(f"{path} is not a localizer training config")
-        if saved != config.to_json():
-            diff = [k for k in config.to_json() if saved.get(k) != config.to_json()[k]]
-            raise OtherModel(
-                f"{out} holds a localizer trained with another config ({', '.join(diff)} differ)"
-            )
-        return
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise OtherModel(f"{out} exists and is not a localizer training directory")
-    out.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(config.to_json(), indent=2) + "\n")
+def prepare_out(out, config: VisionTrainConfig, force: bool = False, note=None) -> Path:
+    """Create --out with train_config.json, or resume a localizer of the same config there;
+    with `force` one of any config is moved aside (`note` is told where)."""
+    model = OutDir(out, CONFIG_FILE, "localizer")
+    model.open(config.to_json(), force, note=note)
+    return model.path
 
 
 def train(
@@ -345,9 +312,9 @@ def train(
     progress: bool = True,
 ) -> Localizer:
     """Train (or resume) a localizer on the split `data_dir`; export it to out_dir."""
-    import jax
-    import orbax.checkpoint as ocp
     from tqdm import tqdm
+
+    from mjx_peg.learn.checkpoints import Checkpoints
 
     config = config or VisionTrainConfig()
     views = views or ViewConfig()
@@ -375,16 +342,10 @@ def train(
         "reg_opt": reg_opt.init(reg_params),
         "step": np.zeros((), np.int64),  # detector steps, then regressor steps, in one count
     }
-    manager = ocp.CheckpointManager(
-        (out / CHECKPOINTS).absolute(),
-        options=ocp.CheckpointManagerOptions(max_to_keep=2, enable_async_checkpointing=False),
-    )
+    saved = Checkpoints(out / CHECKPOINTS, keep=2, key_width=4)
     start = 0
-    if manager.latest_step() is not None:
-        abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, _flat(state))
-        state = _unflat(
-            state, manager.restore(manager.latest_step(), args=ocp.args.StandardRestore(abstract))
-        )
+    if saved.latest_step() is not None:
+        state = saved.restore(state)
         start = int(state["step"])
     total = config.detector_steps + config.regressor_steps
     metrics_path = out / METRICS_FILE
@@ -394,6 +355,7 @@ def train(
     n_img, n_crop = data["coarse"].shape[0], data["fine"].shape[0]
     b = config.batch
     with (
+        saved,
         open(metrics_path, "a", newline="") as f,
         tqdm(
             total=total,
@@ -440,8 +402,7 @@ def train(
             if done % config.checkpoint_every == 0 or done in (config.detector_steps, total):
                 state["step"] = np.asarray(done, np.int64)
                 f.flush()
-                manager.save(done, args=ocp.args.StandardSave(_flat(state)), force=True)
-                manager.wait_until_finished()
+                saved.save(done, state)
     wall, cpu = time.perf_counter() - t_start, time.process_time() - cpu_start
     from mjx_peg.vision.nets import flat_params
 

@@ -22,6 +22,12 @@ PEG_LENGTH = 0.15  # m: 80 mm in the hole leaves the flange 70 mm above the boar
 PEG_MASS = 0.3  # kg
 GOAL_HEIGHT = 0.0  # m: the tcp's goal (and the goal configuration) is at the table top
 
+# Where the grasp errors (dz, tilt_x, tilt_y) of a trial are applied (world/task.py): "board"
+# raises and tilts the board about its hole's entrance centre (the paper, section 5.2: "errors in
+# the board location and pose"); "flange" shifts and tilts the peg in the gripper, which moves its
+# tip by PEG_LENGTH sin(tilt) before contact (ours, harder).
+GRASP_MODELS: tuple[str, ...] = ("board", "flange")
+
 SUCCESS_REWARD = 38000.0  # the paper's reward for a successful trial
 
 TIMESTEP = 0.002  # s: physics step and control period (500 Hz)

@@ -79,6 +79,7 @@ from mjx_peg.world.constants import (  # noqa: E402
     TIMESTEP,
 )
 from mjx_peg.world.rotations import tool_down_rotation  # noqa: E402
+from mjx_peg.world.task import board_pose  # noqa: E402
 
 BOARD_MIN_HALF_WIDTH = 0.1  # m: inradius of the board's outer outline (at least)
 BOARD_MIN_WALL = 0.05  # m: wall thickness around the hole (at least)
@@ -355,11 +356,13 @@ def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
     return int(idx)
 
 
-def set_board_pose(model: mujoco.MjModel, x: float, y: float, yaw: float) -> None:
-    """Place the board: body_pos = (x, y, 0), body_quat = rotation by yaw about world z."""
+def set_board_pose(
+    model: mujoco.MjModel, x: float, y: float, yaw: float, height: float = 0.0, tilt=(0.0, 0.0)
+) -> None:
+    """Place the board: yaw about world z, then `tilt` (x, y) about its hole's entrance centre,
+    which sits at (x, y, HOLE_DEPTH + height) (`task.board_pose`); flat: body_pos = (x, y, 0)."""
     b = _id(model, mujoco.mjtObj.mjOBJ_BODY, "board")
-    model.body_pos[b] = (x, y, 0.0)
-    model.body_quat[b] = (math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw))
+    model.body_pos[b], model.body_quat[b] = board_pose((x, y), yaw, height, tilt)
 
 
 def set_grasp(model: mujoco.MjModel, dz: float, tilt_x: float, tilt_y: float) -> None:
@@ -393,11 +396,14 @@ def bias_torque(qfrc_bias, qfrc_passive, dof_adr):
     return qfrc_bias[..., dof_adr] - qfrc_passive[..., dof_adr]
 
 
-def start_trial(model, data, ids, board_xy, board_yaw, grasp_error, friction, q0) -> None:
-    """Set up one trial in `model`/`data`: board pose, grasp error, friction, the arm at rest at
-    `q0` and held still by gravity compensation in `data.ctrl`; kinematics and sensors computed
-    (the F/T reading is then the tare)."""
-    set_board_pose(model, float(board_xy[0]), float(board_xy[1]), float(board_yaw))
+def start_trial(specs, index: int, model, data, ids) -> None:
+    """Set up trial `index` of `specs` in `model`/`data`: board pose, grasp error, friction, the
+    arm at rest at q0 and held still by gravity compensation in `data.ctrl`; kinematics and
+    sensors computed (the F/T reading is then the tare)."""
+    board_xy, board_yaw = specs.board_pos[index], specs.board_yaw[index]
+    grasp_error, friction, q0 = specs.grasp_error[index], specs.friction[index], specs.q0[index]
+    set_board_pose(model, float(board_xy[0]), float(board_xy[1]), float(board_yaw),
+                   float(specs.board_height[index]), specs.board_tilt[index])  # fmt: skip
     set_grasp(model, *(float(v) for v in grasp_error))
     set_friction(model, float(friction))
     mujoco.mj_resetData(model, data)

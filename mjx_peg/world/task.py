@@ -3,10 +3,12 @@
 Per trial (CONVENTIONS.md "Trial quantities"): a shape and size, the board (true hole centre
 uniform in area over an annular sector of the workspace, yaw uniform), the peg-board friction, a
 localization error (dx, dy, dyaw) and a grasp error (dz, tilt_x, tilt_y), each uniform within
-+- its range, and a start: the nominal tip (`tcp`) above the estimated hole, with a random
-horizontal offset, height and small tilt, and the arm configuration reaching it (analytic IK,
-the branch nearest `kinematics.HOME_Q`). Trials whose start or goal configuration is out of
-reach or near-singular are drawn again (rejection sampling).
++- its range and applied as `TaskConfig.grasp_model` says (the board's height and tilt about its
+hole's entrance centre, the paper's; or the peg's pose in the flange), and a start: the nominal
+tip (`tcp`) above the estimated hole, with a random horizontal offset, height and small tilt, and
+the arm configuration reaching it (analytic IK, the branch nearest `kinematics.HOME_Q`). Trials
+whose start or goal configuration is out of reach or near-singular are drawn again (rejection
+sampling).
 """
 
 from __future__ import annotations
@@ -17,10 +19,17 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from mjx_peg import compat
 from mjx_peg.errors import UsageError
 from mjx_peg.world import kinematics
-from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH, PEG_LENGTH, SHAPES
-from mjx_peg.world.rotations import matrix_from_rotvec, tool_down_rotation
+from mjx_peg.world.constants import GOAL_HEIGHT, GRASP_MODELS, HOLE_DEPTH, PEG_LENGTH, SHAPES
+from mjx_peg.world.rotations import (
+    matrix_from_quat,
+    matrix_from_rotvec,
+    quat_from_yaw,
+    quat_mul,
+    tool_down_rotation,
+)
 
 MAX_REJECTION_FACTOR = 1000  # sample_trials gives up after drawing this many candidates per trial
 
@@ -66,6 +75,8 @@ class TaskConfig:
     start_xy_jitter: float = 0.0  # start tip offset from the estimated hole, within a disc (m)
     start_tilt_jitter: float = 0.0  # start orientation from tool-down (rad)
     time_limit_s: float = 60.0  # the paper's evaluation limit
+    # Where the grasp errors go (constants.GRASP_MODELS): "board" (the paper's) or "flange".
+    grasp_model: str = "board"
     # F/T sensor randomization per trial, like the friction (training; skill/sensor.py has the
     # UR5e pipeline in TrialConfig.sensor): the filter cutoff and the noise are scaled by factors
     # drawn log-uniformly, the latency is offset by an integer number of control periods drawn
@@ -93,6 +104,10 @@ class TaskConfig:
         if not sizes or not all(math.isfinite(s) and s > 0.0 for s in sizes):
             raise UsageError(f"TaskConfig.sizes must be positive numbers (m), got {sizes}")
         object.__setattr__(self, "sizes", sizes)
+        if self.grasp_model not in GRASP_MODELS:
+            raise UsageError(
+                f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
+            )
         for name, upper in (
             ("linear_error", 0.05),
             ("angular_error", math.pi / 4),
@@ -203,6 +218,8 @@ _SPEC_FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "friction": ((), np.float64),
     "loc_error": ((3,), np.float64),
     "grasp_error": ((3,), np.float64),
+    "board_height": ((), np.float64),
+    "board_tilt": ((2,), np.float64),
     "hole_est_pos": ((2,), np.float64),
     "hole_est_yaw": ((), np.float64),
     "tcp0_pos": ((3,), np.float64),
@@ -228,6 +245,8 @@ class TrialSpec:
     friction: np.ndarray  # (B,) peg-board friction
     loc_error: np.ndarray  # (B, 3) localization error (dx, dy, dyaw): estimate - true
     grasp_error: np.ndarray  # (B, 3) peg in the flange frame: (dz, tilt_x, tilt_y)
+    board_height: np.ndarray  # (B,) the hole's entrance above its nominal height (m)
+    board_tilt: np.ndarray  # (B, 2) board tilt (x, y) about its hole's entrance centre (rad)
     hole_est_pos: np.ndarray  # (B, 2) estimated hole centre = board_pos + loc_error[:, :2]
     hole_est_yaw: np.ndarray  # (B,) estimated yaw = board_yaw + loc_error[:, 2]
     tcp0_pos: np.ndarray  # (B, 3) start position of the nominal tip (site `tcp`)
@@ -259,6 +278,7 @@ class TrialSpec:
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> TrialSpec:
+        arrays = compat.spec_arrays(arrays)
         missing = [name for name in _SPEC_FIELDS if name not in arrays]
         if missing:
             raise UsageError(f"TrialSpec arrays lack {', '.join(missing)}")
@@ -293,6 +313,30 @@ class TrialSpec:
         return self
 
 
+def board_pose(board_pos, board_yaw, board_height, board_tilt) -> tuple[np.ndarray, np.ndarray]:
+    """The board body's pose: pos (..., 3), quat (..., 4) (w, x, y, z) in the world.
+
+    R = Ry(tilt_y) Rx(tilt_x) Rz(yaw) (tilts about world axes) and the hole's entrance centre,
+    (0, 0, HOLE_DEPTH) in the board frame, at (x, y, HOLE_DEPTH + height): the pivot of the tilt.
+    With no height and tilt this is (x, y, 0) and the yaw quaternion exactly.
+    """
+    tilt = np.asarray(board_tilt, dtype=np.float64)
+    cx, sx = np.cos(0.5 * tilt[..., 0]), np.sin(0.5 * tilt[..., 0])
+    cy, sy = np.cos(0.5 * tilt[..., 1]), np.sin(0.5 * tilt[..., 1])
+    # (cy, 0, sy, 0) (cx, sx, 0, 0), as scene.grasp_quat
+    q_tilt = np.stack([cy * cx, cy * sx, sy * cx, -sy * sx], axis=-1)
+    quat = quat_mul(q_tilt, quat_from_yaw(np.asarray(board_yaw, dtype=np.float64)))
+    height = HOLE_DEPTH + np.asarray(board_height, dtype=np.float64)
+    entrance = np.concatenate([np.asarray(board_pos, dtype=np.float64), height[..., None]], axis=-1)
+    return entrance - HOLE_DEPTH * matrix_from_quat(quat)[..., :, 2], quat
+
+
+def hole_frame(specs: TrialSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Each trial's true hole: origin (B, 3) on its axis at the board's bottom, axis (B, 3)."""
+    pos, quat = board_pose(specs.board_pos, specs.board_yaw, specs.board_height, specs.board_tilt)
+    return pos, matrix_from_quat(quat)[..., :, 2]
+
+
 def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
     """n unfiltered trials (everything but the IK)."""
     lin, ang = config.linear_error, config.angular_error
@@ -305,7 +349,11 @@ def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[st
     board_yaw = rng.uniform(*config.board_yaw_range, n)
     friction = rng.uniform(*config.friction_range, n)
     loc_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, lin, ang])
-    grasp_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, ang, ang])
+    grasp = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, ang, ang])
+    on_board = config.grasp_model == "board"
+    grasp_error = np.zeros_like(grasp) if on_board else grasp
+    board_height = grasp[:, 0] if on_board else np.zeros(n)
+    board_tilt = grasp[:, 1:] if on_board else np.zeros((n, 2))
     hole_est_pos = board_pos + loc_error[:, :2]
     hole_est_yaw = board_yaw + loc_error[:, 2]
     # Start: tip over the estimated hole, offset uniformly within a disc, tilted by a rotation
@@ -333,6 +381,8 @@ def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[st
         friction=friction,
         loc_error=loc_error,
         grasp_error=grasp_error,
+        board_height=board_height,
+        board_tilt=board_tilt,
         hole_est_pos=hole_est_pos,
         hole_est_yaw=hole_est_yaw,
         tcp0_pos=tcp0_pos,

@@ -1,6 +1,6 @@
-"""A markdown table of `benchmarks/contact.py --csv` runs of the same trials, paired.
+"""A markdown table of `experiments/contact.py --csv` runs of the same trials, paired.
 
-    python benchmarks/contact_table.py --reference runs/contact/paper_nominal.csv \
+    python experiments/contact_table.py --reference runs/contact/paper_nominal.csv \
         runs/contact/paper_*.csv
 
 One row per CSV: success, protective stops, settled failures, the peak sensed force (median,
@@ -50,11 +50,11 @@ def row(name: str, run: dict, reference: dict | None) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("csv", nargs="+", type=pathlib.Path)
     p.add_argument("--reference", type=pathlib.Path, help="the run the others are paired with")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     reference = load(args.reference) if args.reference else None
     header = ["run", "success", "protective stops", "settled", "peak median / p99",
               "chatter median, < 5 N", "insert p50"]  # fmt: skip

@@ -39,7 +39,8 @@ def _specs(shape="circle", n=2, linear_mm=2.0):
     """Trials with localization errors and no grasp error (the adapter's model of the arm has
     the peg at its nominal grasp; a grasp error is a model error the simulated arm would not
     share)."""
-    task = TaskConfig(shapes=(shape,), linear_error=linear_mm / 1000.0, angular_error=0.0)
+    task = TaskConfig(shapes=(shape,), linear_error=linear_mm / 1000.0, angular_error=0.0,
+                      grasp_model="flange")  # fmt: skip
     specs = sample_trials(task, 0, n)
     specs.grasp_error[:] = 0.0
     return specs

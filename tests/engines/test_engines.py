@@ -22,16 +22,17 @@ def _specs(shape, n, seed, **errors):
 
 @pytest.mark.parametrize("shape", ["circle", "square", "triangle"])
 def test_baseline_inserts_without_errors(shape):
-    """No localization, grasp or sensor error. (The F/T sensor's residual bias alone, +-1 N and
-    +-0.1 N m, shifts the baseline's goal by up to ~2 mm through its compliance, more than the
-    circle's 0.75 mm clearance: 92 % of these circle trials then succeed.)"""
-    from mjx_peg.skill.sensor import SensorConfig
-
+    """No localization or grasp error, the nominal sensor: every trial inserts once the
+    compliance ignores the sensor's residual bias (a dead band of 2 N and 0.4 N m). Without
+    it the bias alone, +-1 N and +-0.1 N m, shifts the baseline's goal by up to ~2 mm through its
+    compliance, more than the circle's 0.75 mm clearance (60 trials of seed 7: circle 90 %,
+    triangle 81.7 %; docs/zero_error.md)."""
     specs = _specs(shape, 100, seed=1, **NO_ERRORS)
-    unbiased = TrialConfig(sensor=SensorConfig(force_bias=0.0, torque_bias=0.0))
-    result = run_trials(specs, baseline_params(), engine="mujoco", config=unbiased)
+    config = TrialConfig(force_deadband=2.0, moment_deadband=0.4)
+    result = run_trials(specs, baseline_params(), engine="mujoco", config=config)
     print(shape, result.summary())
-    assert result.success.mean() >= 0.98, result.summary()
+    assert result.success.all(), result.summary()
+    assert np.percentile(result.peak_force, 99) < 10.0  # no hard landing on the rim
     assert np.median(result.time_s[result.success]) < 4.0, result.summary()
     assert not result.unstable.any()
     # Success means the tip is near the table, inside the hole's footprint.
@@ -46,11 +47,12 @@ def test_unstable_parameters_fail_alone():
     """Huge gains blow up their own trials; the other trials of the batch are unaffected."""
     specs = _specs("square", 8, seed=2, linear_error=0.002, angular_error=np.deg2rad(2.0))
     good = np.tile(baseline_params(), (8, 1))
-    alone = run_trials(specs, good, engine="mujoco", threads=1, slots_per_thread=8)
+    config = TrialConfig(time_limit_s=3.0)
+    alone = run_trials(specs, good, engine="mujoco", config=config, threads=1, slots_per_thread=8)
     wild = good.copy()
     wild[1::2, 0] = 1e9  # k_t: stiffness far beyond anything a 2 ms step can integrate
     wild[1::2, 1] = 1e9
-    mixed = run_trials(specs, wild, engine="mujoco", threads=1, slots_per_thread=8)
+    mixed = run_trials(specs, wild, engine="mujoco", config=config, threads=1, slots_per_thread=8)
     assert mixed.unstable[1::2].all()
     assert not mixed.success[1::2].any()
     assert np.all(mixed.reward[1::2] < 38000.0)
@@ -61,8 +63,9 @@ def test_unstable_parameters_fail_alone():
 
 def test_results_do_not_depend_on_threads_or_slots():
     specs = _specs("circle", 6, seed=3, linear_error=0.002, angular_error=np.deg2rad(3.0))
-    a = run_trials(specs, baseline_params(), engine="mujoco", threads=1, slots_per_thread=6)
-    b = run_trials(specs, baseline_params(), engine="mujoco", threads=2, slots_per_thread=1)
+    config = TrialConfig(time_limit_s=3.0)
+    a = run_trials(specs, baseline_params(), "mujoco", config, threads=1, slots_per_thread=6)
+    b = run_trials(specs, baseline_params(), "mujoco", config, threads=2, slots_per_thread=1)
     np.testing.assert_array_equal(a.success, b.success)
     np.testing.assert_allclose(a.final_tip_pos, b.final_tip_pos, atol=1e-9)
 
@@ -153,18 +156,7 @@ def test_engines_agree():
     assert not acc.unstable.any()
 
 
-@pytest.mark.slow
-def test_engines_read_the_same_sensor():
-    """The F/T pipeline's noise and bias come from the trial, not the engine: in free motion
-    (no contact) both engines report the same peak sensed force and chatter (float32 in MJX)."""
-    specs = _specs("square", 4, seed=5, linear_error=0.001, angular_error=0.01)
-    config = TrialConfig(time_limit_s=0.4)
-    cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config, workers=1)
-    acc = run_trials(specs, baseline_params(), engine="mjx", config=config, batch=4)
-    assert np.all(cpu.peak_force > 1.0)  # the noise and the bias, nothing touched
-    np.testing.assert_allclose(acc.peak_force, cpu.peak_force, rtol=1e-4)
-    np.testing.assert_allclose(acc.chatter, cpu.chatter, rtol=1e-3)
-    np.testing.assert_array_equal(acc.steps, cpu.steps)
+# The engines read the same sensor: tests/test_experiments.py (engines_agree.py's smoke test).
 
 
 def _mixed_specs(n, seed):
@@ -186,7 +178,7 @@ def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
     specs = _mixed_specs(12, seed=6)
     params = np.tile(baseline_params(), (12, 1))
     params[5, :2] = 1e9  # one trial blows up
-    config = TrialConfig(time_limit_s=6.0)  # the approach takes 2 s
+    config = TrialConfig(time_limit_s=3.0)  # the approach takes 2 s
     local = run_trials(specs, params, engine="mujoco", config=config, threads=1)
     counts = []
     lanes = run_trials(
@@ -223,8 +215,7 @@ def test_batch_step_is_mj_step2_then_mj_step1(persistent):
     datas = [mujoco.MjData(m) for m in models]
     for i in range(n):
         sims.load(i, specs, i)
-        scene.start_trial(models[i], datas[i], sims.ids, specs.board_pos[i], specs.board_yaw[i],
-                          specs.grasp_error[i], specs.friction[i], specs.q0[i])  # fmt: skip
+        scene.start_trial(specs, i, models[i], datas[i], sims.ids)
         mujoco.mj_step1(models[i], datas[i])
     ids = np.arange(n, dtype=np.int32)
     sims.forward(ids)
@@ -437,9 +428,7 @@ def test_start_trial_edits_only_the_fields_the_engine_expands():
     for i in range(len(specs)):
         key = sims.scene_key(specs, i)
         before, m = scene.load_model(*key), scene.load_model(*key)
-        scene.start_trial(m, mujoco.MjData(m), scene.scene_ids(m), specs.board_pos[i],
-                          specs.board_yaw[i], specs.grasp_error[i], specs.friction[i],
-                          specs.q0[i])  # fmt: skip
+        scene.start_trial(specs, i, m, mujoco.MjData(m), scene.scene_ids(m))
         changed = {
             name for name in dir(m)
             if isinstance(getattr(m, name, None), np.ndarray)
@@ -467,10 +456,9 @@ def test_worker_processes_give_the_in_process_results():
 
 def test_a_dead_worker_process_is_one_clear_error():
     """A worker killed mid-call (as a crash in C would): RuntimeError, not a hang."""
+    import multiprocessing
     import signal
     import threading
-
-    from mjx_peg.engines import processes
 
     specs = sample_trials(TaskConfig(shapes=("square",)), 1, 4)
     params = np.tile(baseline_params(), (4, 1))
@@ -479,9 +467,9 @@ def test_a_dead_worker_process_is_one_clear_error():
 
     def kill_a_worker():
         for _ in range(400):
-            workers = processes._pool and getattr(processes._pool[1], "_processes", None)
+            workers = multiprocessing.active_children()  # the pool's worker processes
             if workers:
-                os.kill(next(iter(workers)), signal.SIGKILL)
+                os.kill(workers[0].pid, signal.SIGKILL)
                 return
             time.sleep(0.05)
 

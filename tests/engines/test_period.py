@@ -50,13 +50,15 @@ def _leaves(trees) -> list:
     return out
 
 
-def test_period_is_the_same_on_numpy_and_jax():
+@pytest.mark.parametrize("deadband", [(0.0, 0.0), (2.0, 0.4)])
+def test_period_is_the_same_on_numpy_and_jax(deadband):
     """`period.period` and `period.result` on a lane's real rows (at the start, in contact, at a
-    settle window's close): NumPy and JAX (float64, jitted) agree within 1e-6 (relative)."""
+    settle window's close), with and without the wrench's dead band: NumPy and JAX (float64,
+    jitted) agree within 1e-6 (relative)."""
     import jax
     import jax.numpy as jnp
 
-    config = TrialConfig(time_limit_s=6.0)
+    config = TrialConfig(time_limit_s=6.0, force_deadband=deadband[0], moment_deadband=deadband[1])
     w = config.settle_steps
     captured = _capture({0, 700, 5 * w - 1}, config)
     control, basis = control_config(config), fitted_basis(config.dmp)

@@ -66,6 +66,7 @@ def test_samples_stay_inside_every_range(which, request):
     lin, ang = config.linear_error, config.angular_error
     assert np.all(np.abs(s.loc_error) <= [lin, lin, ang])
     assert np.all(np.abs(s.grasp_error) <= [lin, ang, ang])
+    assert np.all(np.abs(s.board_height) <= lin) and np.all(np.abs(s.board_tilt) <= ang)
     assert np.all(s.linear_range == lin) and np.all(s.angular_range == ang)
     np.testing.assert_allclose(s.hole_est_pos, s.board_pos + s.loc_error[:, :2], atol=1e-15)
     np.testing.assert_allclose(s.hole_est_yaw, s.board_yaw + s.loc_error[:, 2], atol=1e-15)
@@ -119,7 +120,7 @@ def test_marginals_are_uniform(default_specs):
     lin, ang = config.linear_error, config.angular_error
     for values, half in (
         (s.loc_error[:, 0], lin),
-        (s.grasp_error[:, 1], ang),
+        (s.board_tilt[:, 0], ang),  # the grasp tilt, on the board (the default model)
         (s.loc_error[:, 2], ang),
     ):
         assert stats.kstest(values, stats.uniform(-half, 2 * half).cdf).pvalue > 0.01
@@ -267,3 +268,33 @@ def test_sensor_draws_are_per_trial_and_leave_the_rest_of_the_trial_alone():
         TaskConfig(sensor_delay_offset=(1, 0))
     with pytest.raises(ValueError, match="sensor_noise_scale"):
         TaskConfig(sensor_noise_scale=(0.0, 1.0))
+
+
+def test_the_board_model_puts_the_grasp_errors_on_the_board():
+    """Same seed, same draws: the flange model tilts the peg, the board model (the paper's, the
+    default) raises and tilts the board by the same numbers; everything else is the same."""
+    flange = sample_trials(TaskConfig(grasp_model="flange"), 4, 64)
+    board = sample_trials(TaskConfig(), 4, 64)
+    for name in ("board_pos", "board_yaw", "loc_error", "hole_est_pos", "tcp0_pos", "q0"):
+        np.testing.assert_array_equal(getattr(board, name), getattr(flange, name), err_msg=name)
+    np.testing.assert_array_equal(board.grasp_error, 0.0)
+    np.testing.assert_array_equal(board.board_height, flange.grasp_error[:, 0])
+    np.testing.assert_array_equal(board.board_tilt, flange.grasp_error[:, 1:])
+    np.testing.assert_array_equal(flange.board_height, 0.0)
+    origin, axis = task.hole_frame(flange)
+    np.testing.assert_array_equal(origin[:, :2], flange.board_pos)
+    np.testing.assert_array_equal(origin[:, 2], 0.0)
+    np.testing.assert_array_equal(axis, np.broadcast_to([0.0, 0.0, 1.0], axis.shape))
+    origin, axis = task.hole_frame(board)
+    entrance = origin + HOLE_DEPTH * axis
+    np.testing.assert_allclose(entrance[:, :2], board.board_pos, atol=1e-15)
+    np.testing.assert_allclose(entrance[:, 2], HOLE_DEPTH + board.board_height, atol=1e-15)
+    tilt = np.degrees(np.arccos(axis[:, 2]))
+    assert 4.0 < tilt.max() <= math.degrees(math.hypot(*(2 * [math.radians(6.0)])))
+    # Specs saved before the board model: a flat board.
+    old = {k: v for k, v in flange.to_arrays().items() if not k.startswith("board_") or k in
+           ("board_pos", "board_yaw")}  # fmt: skip
+    again = TrialSpec.from_arrays(old)
+    np.testing.assert_array_equal(again.board_tilt, 0.0)
+    with pytest.raises(ValueError, match="unknown grasp model 'wrist'"):
+        TaskConfig(grasp_model="wrist")

@@ -24,7 +24,7 @@ from mjx_peg.policy import observation
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.network import controller_vector
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # A tiny run: 3 iterations of 16 trials of at most 0.6 s.
 TINY = TrainConfig(preset="quick", trials=48, num_envs=16, time_limit_s=0.6, seed=3)
 TINY_ARGS = ["--trials", "48", "--num-envs", "16", "--time-limit", "0.6", "--seed", "3"]

@@ -1,22 +1,17 @@
-"""Credible contact (issue 18): success and contact metrics of a controller on a fixed set.
+"""Success and contact metrics of a controller on a fixed set of trials (docs/credible_contact.md).
 
-    python benchmarks/contact.py [--policy baseline|RUN_DIR] [--sensor VARIANT] [--trials 500]
+    python experiments/contact.py [--policy baseline|RUN_DIR] [--sensor VARIANT] [--trials 500]
         [--time-limit 60] [--seed 1] [--first] [--full-time-limit] [--threads N]
         [--processes N] [--csv FILE]
 
-The set: circle + square 50 mm (`--shapes`), +-4 mm / +-6 deg, `sample_trials(seed)`, the C engine
-(`mujoco.batch` lanes, one per core by default), the default TrialConfig (the UR5e's F/T
-pipeline, the compliance damping, the 2 s approach, the 150 N protective stop; failures that have
-settled end early unless --full-time-limit). Prints success, protective stops, settled failures,
-the peak sensed force (median, p99) and the chatter (mean |dF| of the true axial force over the
-last second of trials longer than 1.2 s: median and the share under 5 N), the wall time and the
-physics steps per second. `--first` runs the first hand-tuned baseline (k = 300, compliance
-1e-3 m/N and 0.05 rad/(N m), +-3e-3 m/(N m) moment-to-shift) instead of the current one.
-`--policy RUN_DIR` runs a trained policy (its 38 numbers for each trial's observation).
-`--sensor` changes the F/T pipeline of every trial (issue 18's robustness check): `nofilter`
-(no low-pass), `cutoff0.5` / `cutoff2` (the cutoff halved / doubled), `delay+2` (two more
-control periods of latency), `noise2` (the noise doubled). `--csv` writes one row per trial
-(for paired comparisons of two runs of the same set).
+The set: circle + square 50 mm (`--shapes`), +-4 mm / +-6 deg, `sample_trials(seed)`, on the C
+engine with the default TrialConfig (failures that have settled end early unless
+--full-time-limit). Prints the outcome summary (success, protective stops, settled failures,
+peak sensed force, chatter), the time to insert, the physics steps per second and the failure
+taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the
+first hand-tuned baseline instead of the current one; `--policy RUN_DIR`: a trained policy.
+`--sensor` changes one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`). `--csv`: one
+row per trial, for paired comparisons (`experiments/contact_table.py`).
 """
 
 from __future__ import annotations
@@ -29,15 +24,17 @@ import numpy as np
 
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.evaluation import taxonomy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import ControllerParams, vector_from_controller
 from mjx_peg.skill.sensor import SensorConfig
-from mjx_peg.world.constants import HOLE_DEPTH
+from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 
 def first_baseline() -> np.ndarray:
-    """(38,) the hand-tuned baseline before issue 18."""
+    """(38,) the first hand-tuned baseline: k = 300, compliance 1e-3 m/N and 0.05 rad/(N m),
+    +-3e-3 m/(N m) moment-to-shift."""
     c = np.diag([1e-3, 1e-3, 1e-3, 0.05, 0.05, 0.01])
     c[1, 3], c[0, 4] = 3e-3, -3e-3
     k = np.asarray(300.0)
@@ -45,7 +42,8 @@ def first_baseline() -> np.ndarray:
 
 
 def sensor_variant(name: str) -> SensorConfig:
-    """The nominal UR5e pipeline with one thing changed (issue 18's robustness variants)."""
+    """The nominal UR5e pipeline with one thing changed: no low-pass, the cutoff halved or
+    doubled, two more periods of latency, the noise doubled."""
     s = SensorConfig()
     return {
         "nominal": s,
@@ -75,12 +73,12 @@ def write_csv(path: str, result, specs) -> None:
         f.write("\n".join(rows) + "\n")
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=500)
     p.add_argument("--time-limit", type=float, default=60.0)
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--first", action="store_true", help="the baseline before issue 18")
+    p.add_argument("--first", action="store_true", help="the first hand-tuned baseline")
     p.add_argument("--full-time-limit", action="store_true", help="run every failure to the limit")
     p.add_argument("--threads", type=int, default=None, help="lanes (default: every core)")
     p.add_argument("--processes", type=int, default=None, help="lanes in worker processes")
@@ -88,9 +86,22 @@ def main() -> None:
     p.add_argument("--sensor", default="nominal", choices=SENSOR_VARIANTS)
     p.add_argument("--csv", help="write one row per trial here")
     p.add_argument("--shapes", default="circle,square", help="comma-separated (50 mm each)")
-    args = p.parse_args()
+    p.add_argument(
+        "--grasp-model",
+        default="board",
+        choices=GRASP_MODELS,
+        help="where the grasp errors go (flange: the numbers before issue 24)",
+    )
+    p.add_argument(
+        "--deadband",
+        default="0,0",
+        help="force (N), moment (N m) dead bands of the "
+        "wrench the compliance acts on (TrialConfig.force_deadband, moment_deadband)",
+    )
+    args = p.parse_args(argv)
     task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(0.05,), linear_error=0.004,
-                      angular_error=math.radians(6.0))  # fmt: skip
+                      angular_error=math.radians(6.0), grasp_model=args.grasp_model)  # fmt: skip
+    force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
     specs = sample_trials(task, args.seed, args.trials)
     if args.policy != "baseline":
         from mjx_peg.policy.export import load_policy
@@ -105,6 +116,8 @@ def main() -> None:
         time_limit_s=args.time_limit,
         end_settled=not args.full_time_limit,
         sensor=sensor_variant(args.sensor),
+        force_deadband=force_deadband,
+        moment_deadband=moment_deadband,
     )
     result = run_trials(specs, vec, engine="mujoco", config=config, threads=args.threads,
                         processes=args.processes)  # fmt: skip
@@ -119,6 +132,8 @@ def main() -> None:
     )
     print(f"time to insert p10 / p50 / p90: {p10:.2f} / {p50:.2f} / {p90:.2f} s; wall {wall:.0f} s "
           f"for {steps:,} physics steps ({steps / wall:,.0f} steps/s)")  # fmt: skip
+    rows = taxonomy.table(specs, result.to_arrays(), config.time_limit_s, config.timestep)
+    print(taxonomy.markdown(rows, len(specs)), end="")
     if args.csv:
         write_csv(args.csv, result, specs)
 

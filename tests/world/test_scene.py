@@ -442,3 +442,25 @@ def test_cli_bad_input_one_line_no_traceback(tmp_path, args):
     assert proc.returncode == 2
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "error" in lines[0] and "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_a_tilted_raised_board_pivots_about_its_hole_entrance():
+    """The paper's grasp errors on the board: the hole's entrance centre stays at (x, y) and
+    rises by the height error; the hole axis is the board's tilted z; flat, the pose is exact."""
+    from mjx_peg.world.task import board_pose
+
+    model = scene.load_model("square", 0.05)
+    ids = scene.scene_ids(model)
+    scene.set_board_pose(model, 0.5, -0.2, 0.7, 0.003, (0.08, -0.05))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rot = data.xmat[ids.board_body].reshape(3, 3)
+    entrance = data.xpos[ids.board_body] + rot[:, 2] * constants.HOLE_DEPTH
+    np.testing.assert_allclose(entrance, [0.5, -0.2, constants.HOLE_DEPTH + 0.003], atol=1e-12)
+    cx, sx, cy, sy = math.cos(0.08), math.sin(0.08), math.cos(-0.05), math.sin(-0.05)
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    np.testing.assert_allclose(rot, ry @ rx @ rot_z(0.7), atol=1e-12)
+    pos, quat = board_pose(np.array([0.5, -0.2]), np.array(0.7), np.array(0.0), np.zeros(2))
+    assert pos.tolist() == [0.5, -0.2, 0.0]
+    assert quat.tolist() == [math.cos(0.35), 0.0, 0.0, math.sin(0.35)]

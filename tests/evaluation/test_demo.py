@@ -100,7 +100,7 @@ def test_demo_with_a_policy_directory(tmp_path, capsys):
     argv = ["--policy", str(tmp_path / "run"), "--time-limit", "0.2", "--frames", "0"]
     assert demo_cli.main([*argv, "--out", str(tmp_path / "o")]) == 0
     assert capsys.readouterr().out.startswith("square 50 mm, ±3 mm / ±4 deg: ")
-    args = demo_cli._parser().parse_args(argv)
+    args = demo_cli.build_parser().parse_args(argv)
     specs, vector, config, _ = demo_cli.trial_from_args(args)
     assert config.time_limit_s == 0.2
     np.testing.assert_array_equal(vector, load_policy(tmp_path / "run").controller_vectors(specs))

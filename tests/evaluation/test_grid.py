@@ -20,7 +20,7 @@ from mjx_peg.evaluation.plots import (
     time_heatmap,
 )
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 PAPER_TEX = REPO.parent / "shared" / "paper" / "spector-zacksenhouse-compliant-dmp.tex"
 
 # A 4 x 4 synthetic grid (linear 1-4 mm, angular 1-4 deg): four ranges per quarter.
@@ -274,11 +274,11 @@ TINY = [
 
 
 def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, capsys):
-    from mjx_peg.engines import processes
+    import multiprocessing
 
     full, resumed = tmp_path / "full", tmp_path / "resumed"
     assert eval_cli.main([*TINY, "--out", str(full)]) == 0
-    assert processes._pool is None  # its worker processes (one per core) stopped with it
+    assert not multiprocessing.active_children()  # its worker processes stopped with it
     for name in ("grid.csv", "summary.md", "success_heatmap.png", "time_heatmap.png"):
         assert (full / name).stat().st_size > 0, name
     assert (full / "paper_comparison.png").stat().st_size > 0  # circle + square, 50 mm: nominal

@@ -279,3 +279,13 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     )
     assert pos_err < 1e-3 and np.degrees(ang_err) < 0.5
     assert final < 1e-3
+
+
+def test_the_dead_band_shrinks_force_and_moment_by_their_widths():
+    from mjx_peg.skill.control_step import deadband
+
+    w = np.array([[3.0, 0.0, 4.0, 0.0, 0.3, 0.0], [1.0, 1.0, 1.0, 0.1, 0.1, 0.1]])
+    out = deadband(w, 2.0, 0.4)
+    np.testing.assert_allclose(out[0], [1.8, 0.0, 2.4, 0.0, 0.0, 0.0])  # |f| 5 -> 3, |m| < 0.4
+    np.testing.assert_array_equal(out[1], 0.0)  # |f| = 1.73 N, |m| = 0.17 N m: the bias's size
+    assert deadband(w, 0.0, 0.0) is w  # the paper's coupling: the wrench as it is

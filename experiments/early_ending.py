@@ -2,13 +2,13 @@
 
     python eval.py --policy baseline --grid paper-small --out runs/eval/early
     python eval.py --policy baseline --grid paper-small --full-time-limit --out runs/eval/full
-    python benchmarks/early_ending.py runs/eval/early runs/eval/full [--write]
+    python experiments/early_ending.py runs/eval/early runs/eval/full [--write [FILE]]
 
 Both evaluations must hold the same grid, trials and seed (so trial k of range r is the same
 board, grasp and friction in both); only `--full-time-limit` may differ. Prints the fraction of
 trials with the same outcome, every trial that differs (range, index, errors, both outcomes and
 times), the simulated steps each run needed and what early ending saved. `--write` replaces the
-"## Early ending" section of BENCHMARKS.md.
+"## Early ending" section of BENCHMARKS.md (or of FILE).
 """
 
 from __future__ import annotations
@@ -18,9 +18,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from _report import ROOT, write_section  # benchmarks/ is on sys.path when run
 
 from mjx_peg.evaluation import grid
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from _report import ROOT, write_section  # noqa: E402  (benchmarks/_report.py)
 
 
 def compare(early_dir: Path, full_dir: Path) -> tuple[list[str], float]:
@@ -85,18 +87,19 @@ def compare(early_dir: Path, full_dir: Path) -> tuple[list[str], float]:
     return lines, share
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("early", type=Path, help="evaluation with early ending (the default)")
     p.add_argument("full", type=Path, help="the same evaluation with --full-time-limit")
-    p.add_argument("--write", action="store_true", help="update BENCHMARKS.md")
-    args = p.parse_args()
+    p.add_argument("--write", nargs="?", type=Path, const=ROOT / "BENCHMARKS.md", metavar="FILE",
+                   help="update the section in FILE (default BENCHMARKS.md)")  # fmt: skip
+    args = p.parse_args(argv)
     lines, _ = compare(args.early, args.full)
     print("\n".join(lines))
     if args.write:
-        cmd = f"python benchmarks/early_ending.py {args.early} {args.full} --write"
+        cmd = f"python experiments/early_ending.py {args.early} {args.full} --write"
         section = "\n".join(["## Early ending", "", *lines, "", f"Reproduce: `{cmd}`", ""])
-        write_section(ROOT / "BENCHMARKS.md", "## Early ending", section)
+        write_section(args.write, "## Early ending", section)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """Where the engines part: the contacts C MuJoCo and MJX find in the same jammed state.
 
-    python benchmarks/contact_diff.py [--shape square] [--step 1000] [--count 3]
+    python experiments/contact_diff.py [--shape square] [--step 1000] [--count 3]
 
-Runs the agreement benchmark's specs (engines_agree.py defaults) on the mujoco engine, takes the
+Runs the agreement experiment's specs (engines_agree.py defaults) on the mujoco engine, takes the
 first `--count` failures of `--shape`, snapshots each one's MjData at `--step`, and evaluates that
 same state with `mj_forward` and with `mjx.forward`. Prints per engine the contacts (position,
 depth, and the position in both geoms' frames, in mm), the constraint forces and the joint
@@ -17,7 +17,7 @@ import copy
 
 import mujoco
 import numpy as np
-from engines_agree import agreement_specs  # benchmarks/ is on sys.path when run
+from engines_agree import agreement_specs  # experiments/ is on sys.path when run
 
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
@@ -37,7 +37,7 @@ def snapshots(specs, rows, step: int, config: TrialConfig) -> dict[int, tuple]:
                 taken[index] = (copy.copy(m), copy.copy(d))
 
     run_trials(
-        specs.take(rows), baseline_params(), engine="mujoco", config=config, workers=1,
+        specs.take(rows), baseline_params(), engine="mujoco", config=config, threads=1,
         observer=observe,
     )  # fmt: skip
     return taken
@@ -58,19 +58,21 @@ def show_contacts(name: str, d, pos, dist, geom) -> None:
         )
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--shape", default="square", choices=SHAPES)
     p.add_argument("--step", type=int, default=1000, help="physics step of the snapshot")
     p.add_argument("--count", type=int, default=3, help="failed trials to look at")
     p.add_argument("--trials", type=int, default=100)
     p.add_argument("--seed", type=int, default=11)
-    args = p.parse_args()
+    p.add_argument("--time-limit", type=float, help="simulated s (default: 4 or twice --step)")
+    args = p.parse_args(argv)
     import jax
     from mujoco import mjx
 
     specs = agreement_specs(args.trials, seed=args.seed)
-    config = TrialConfig(time_limit_s=max(4.0, 2 * args.step * TrialConfig().timestep))
+    limit = args.time_limit or max(4.0, 2 * args.step * TrialConfig().timestep)
+    config = TrialConfig(time_limit_s=limit)
     result = run_trials(specs, baseline_params(), engine="mujoco", config=config)
     failed = ~result.success & (specs.shape_id == SHAPES.index(args.shape))
     rows = np.flatnonzero(failed)[: args.count]
@@ -82,14 +84,12 @@ def main() -> None:
         mujoco.mj_forward(m, d)
         c = d.contact[: d.ncon]
         show_contacts("mujoco", d, c.pos, c.dist, c.geom)
-        dx = forward(mjx.put_model(m), mjx.put_data(m, d))
-        con = dx._impl.contact if hasattr(dx, "_impl") else dx.contact
-        dist = np.asarray(con.dist)
-        live = dist < 0  # MJX keeps a fixed number of contact slots; these penetrate
-        show_contacts("mjx", d, np.asarray(con.pos)[live], dist[live], np.asarray(con.geom)[live])
-        for label, value in (("qfrc_constraint", "qfrc_constraint"), ("qacc", "qacc")):
-            print(f"  {label}: mujoco {np.round(getattr(d, value), 2)}")
-            print(f"  {' ' * len(label)}  mjx    {np.round(np.asarray(getattr(dx, value)), 2)}")
+        dx = mjx.get_data(m, forward(mjx.put_model(m), mjx.put_data(m, d)))
+        con = dx.contact[: dx.ncon]  # the contacts MJX found, as an MjData holds them
+        show_contacts("mjx", d, con.pos, con.dist, con.geom)
+        for name in ("qfrc_constraint", "qacc"):
+            print(f"  {name}: mujoco {np.round(getattr(d, name), 2)}")
+            print(f"  {' ' * len(name)}  mjx    {np.round(getattr(dx, name), 2)}")
 
 
 if __name__ == "__main__":

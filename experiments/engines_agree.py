@@ -1,6 +1,6 @@
 """Sim-to-sim check: the same specs and parameters on the mujoco and mjx engines.
 
-    python benchmarks/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25] [--out F.npz]
+    python experiments/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25] [--out F.npz]
 
 Prints the fraction of trials with the same outcome, the median times to complete of the trials
 both engines completed, and the final tip distance between the engines. For scale it also runs
@@ -36,7 +36,7 @@ def agreement_specs(
     return sample_trials(task, seed, trials)
 
 
-def main() -> None:
+def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=100)
     p.add_argument("--time-limit", type=float, default=4.0, help="simulated s per trial")
@@ -47,7 +47,7 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--nudge-m", type=float, default=1e-9, help="hole shift of the C-vs-C check")
     p.add_argument("--out", help="save per-trial results of both engines to this .npz")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     specs = agreement_specs(
         args.trials, tuple(args.shapes.split(",")), args.linear_mm, args.angular_deg, args.seed
     )

@@ -1,0 +1,215 @@
+"""The resumable output directory (mjx_peg/outdir.py), its atomic writes, the Orbax checkpoints
+(learn/checkpoints.py), and --force on the vision verbs that write a directory."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mjx_peg import cli
+from mjx_peg.errors import UsageError
+from mjx_peg.outdir import OutDir, write_json, write_npz
+
+CONFIG = {"seed": 0, "shapes": ("circle", "square"), "count": 4}
+
+
+def _tree(path: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()
+    }
+
+
+def _outdir(path: Path, **kwargs) -> OutDir:
+    return OutDir(path, "config.json", "evaluation", **kwargs)
+
+
+def test_a_new_directory_records_its_config_and_resumes_with_the_same(tmp_path):
+    out = _outdir(tmp_path / "out")
+    assert out.open(CONFIG) == "new"
+    assert json.loads((tmp_path / "out" / "config.json").read_text()) == {
+        "seed": 0, "shapes": ["circle", "square"], "count": 4,
+    }  # fmt: skip
+    (tmp_path / "out" / "result.txt").write_text("kept\n")
+    before = _tree(tmp_path / "out")
+    assert out.plan(dict(CONFIG), force=False) == "resume"  # tuples and lists are one config
+    assert out.open(CONFIG) == "resume"
+    assert _tree(tmp_path / "out") == before
+    assert _outdir(tmp_path / "empty").plan(CONFIG, force=False) == "new"
+
+
+def test_another_config_is_one_line_naming_the_keys_that_differ(tmp_path):
+    out = _outdir(tmp_path / "out")
+    out.open(CONFIG)
+    before = _tree(out.path)
+    with pytest.raises(UsageError) as caught:
+        out.plan({**CONFIG, "seed": 7, "count": 5}, force=False)
+    text = str(caught.value)
+    assert "\n" not in text and text.startswith(f"--out {out.path} holds an evaluation")
+    assert "different config (seed: 0 there, 7 now; count differs too)" in text
+    assert "choose another --out, or pass --force to move it aside" in text
+    assert _tree(out.path) == before
+    # A key in `ignore` may change: it is resumed, and the new document recorded.
+    growing = _outdir(out.path, ignore=("count",))
+    assert growing.plan({**CONFIG, "count": 5}, force=False) == "resume"
+    growing.prepare("resume", {**CONFIG, "count": 5})
+    assert json.loads(out.config_path.read_text())["count"] == 5
+
+
+def test_force_moves_the_directory_aside_and_says_where(tmp_path):
+    out = _outdir(tmp_path / "out")
+    out.open(CONFIG)
+    (out.path / "result.txt").write_text("earlier\n")
+    before = _tree(out.path)
+    notes = []
+    assert out.open({**CONFIG, "seed": 1}, force=True, note=notes.append) == "replace"
+    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("out.replaced-")]
+    assert _tree(moved) == before  # nothing deleted
+    assert notes == [f"--force: moved the earlier evaluation in {out.path} aside to {moved}"]
+    assert sorted(p.name for p in out.path.iterdir()) == ["config.json"]
+    assert json.loads(out.config_path.read_text())["seed"] == 1
+
+
+def test_force_replaces_nothing_but_its_own_kind(tmp_path):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("x\n")
+    with pytest.raises(UsageError, match="is not an evaluation directory .*holds no evaluation"):
+        _outdir(mine).plan(CONFIG, force=True)
+    (tmp_path / "file").write_text("x\n")
+    with pytest.raises(UsageError, match="exists and is not a directory"):
+        _outdir(tmp_path / "file").plan(CONFIG, force=True)
+    # A config file that does not read as this kind's: refused, force or not.
+    (mine / "config.json").write_text("{not json")
+    with pytest.raises(UsageError, match=r"config.json is not an evaluation config \(Expecting"):
+        _outdir(mine).plan(CONFIG, force=True)
+
+    def schema(doc):
+        if doc.get("schema") != "mine":
+            raise ValueError("no mine schema")
+        return doc["config"]
+
+    (mine / "config.json").write_text(json.dumps({"config": CONFIG}))
+    with pytest.raises(UsageError, match=r"is not an evaluation config \(no mine schema\)"):
+        _outdir(mine, read=schema).plan(CONFIG, force=True)
+    assert _tree(mine) == {
+        "notes.txt": b"x\n",
+        "config.json": json.dumps({"config": CONFIG}).encode(),
+    }
+    assert [p.name for p in tmp_path.iterdir() if ".replaced-" in p.name] == []
+
+
+class _Unwritable:
+    def __array__(self, *args, **kwargs):
+        raise RuntimeError("the disk went away")
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_partial_one(tmp_path):
+    path = tmp_path / "r.npz"
+    write_npz(path, {"a": np.arange(3)})
+    with np.load(path, allow_pickle=False) as npz:
+        assert npz["a"].tolist() == [0, 1, 2]
+    before = path.read_bytes()
+    with pytest.raises(RuntimeError, match="went away"):  # after the first array was written
+        write_npz(path, {"a": np.arange(4), "b": _Unwritable()})
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.npz"]
+
+    doc = tmp_path / "d.json"
+    write_json(doc, {"x": 1})
+
+    def half(tmp):
+        tmp.write_text('{"x": ')
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError):
+        cli.write_atomic(doc, half)
+    assert doc.read_text() == '{\n  "x": 1\n}\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json", "r.npz"]
+    write_json(doc, {"x": [1, 2]}, indent=None)
+    assert doc.read_text() == '{"x": [1, 2]}\n'
+
+
+def test_checkpoints_round_trip_into_the_template(tmp_path):
+    from mjx_peg.learn.checkpoints import Checkpoints, has_steps
+
+    tree = {"w": np.arange(6, dtype=np.float32).reshape(2, 3), "step": np.asarray(5, np.int64)}
+    tree["opt"] = (np.ones(2), {"mu": np.zeros((2, 3), np.float32)})
+    template = {
+        "w": np.zeros((2, 3), np.float32),
+        "step": np.zeros((), np.int64),
+        "opt": (np.zeros(2), {"mu": np.ones((2, 3), np.float32)}),
+    }
+    where = tmp_path / "checkpoints"
+    assert not has_steps(where) and not where.exists()
+    with Checkpoints(where, keep=2) as saved:
+        assert saved.latest_step() is None
+        for step in (1, 2, 3):
+            saved.save(step, {**tree, "step": np.asarray(step, np.int64)})
+        assert saved.latest_step() == 3
+        back = saved.restore(template)
+        first_kept = saved.restore(template, step=2)
+    assert has_steps(where) and sorted(p.name for p in where.iterdir() if p.is_dir()) == ["2", "3"]
+    assert int(back["step"]) == 3 and int(first_kept["step"]) == 2
+    np.testing.assert_array_equal(back["w"], tree["w"])
+    np.testing.assert_array_equal(back["opt"][1]["mu"], tree["opt"][1]["mu"])
+    assert back["w"].dtype == np.float32 and isinstance(back["opt"], tuple)
+
+    with Checkpoints(where, keep=2) as saved, pytest.raises(UsageError) as caught:
+        saved.restore({**template, "extra": np.zeros(1)})  # another state than was saved
+    assert f"checkpoint {where.absolute() / '3'} is corrupt or truncated" in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_the_localizer_training_directory_is_keyed_by_its_config(tmp_path):
+    from mjx_peg.vision.training import CONFIG_FILE, VisionTrainConfig, prepare_out
+
+    out = tmp_path / "model"
+    prepare_out(out, VisionTrainConfig())
+    recorded = (out / CONFIG_FILE).read_text()
+    assert recorded == json.dumps(VisionTrainConfig().to_json(), indent=2) + "\n"
+    (out / "metrics.csv").write_text("step\n")
+    prepare_out(out, VisionTrainConfig())  # the same: resumed, nothing changed
+    assert (out / CONFIG_FILE).read_text() == recorded and (out / "metrics.csv").is_file()
+    other = VisionTrainConfig(seed=3)
+    with pytest.raises(UsageError, match="holds a localizer with a different config .seed: 0"):
+        prepare_out(out, other)
+    notes = []
+    prepare_out(out, other, force=True, note=notes.append)
+    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("model.replaced-")]
+    assert sorted(p.name for p in moved.iterdir()) == ["metrics.csv", CONFIG_FILE]
+    assert json.loads((out / CONFIG_FILE).read_text())["seed"] == 3 and len(notes) == 1
+
+
+def test_vision_render_resumes_refuses_and_moves_aside_with_force(tmp_path, capsys):
+    from mjx_peg.vision import cli as vision_cli
+
+    out = tmp_path / "split"
+    argv = ["render", "--out", str(out), "--count", "1", "--width", "64", "--height", "64",
+            "--shapes", "square", "--sizes", "50", "--no-progress"]  # fmt: skip
+    assert vision_cli.main(argv) == 0
+    before = _tree(out)
+    assert sorted(before) == ["000000.json", "000000.png", "manifest.json"]
+    capsys.readouterr()
+    assert vision_cli.main([*argv, "--seed", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("mjx-peg-vision: error: ")
+    assert "holds a vision split with a different config (seed: 0 there, 1 now)" in err
+    assert "--force" in err and _tree(out) == before
+    assert vision_cli.main([*argv, "--seed", "1", "--force"]) == 0
+    assert "--force: moved the earlier vision split in" in capsys.readouterr().err
+    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("split.replaced-")]
+    assert _tree(moved) == before
+    assert json.loads((out / "manifest.json").read_text())["config"]["seed"] == 1
+    # Growing the split resumes it: only the new image is rendered.
+    assert vision_cli.main([*argv[:4], "2", *argv[5:], "--seed", "1"]) == 0
+    assert "rendered 1 images (2 in the split)" in capsys.readouterr().out
+    # Nothing but a split is moved aside.
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("x\n")
+    assert vision_cli.main([*argv[:2], str(mine), *argv[3:], "--force"]) == 2
+    assert "--force replaces only a vision split" in capsys.readouterr().err
+    assert _tree(mine) == {"notes.txt": b"x\n"}
