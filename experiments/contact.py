@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import time
 
 import numpy as np
@@ -26,7 +27,7 @@ from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.params import ControllerParams, vector_from_controller
+from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
 from mjx_peg.skill.sensor import SensorConfig
 from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -73,6 +74,18 @@ def write_csv(path: str, result, specs) -> None:
         f.write("\n".join(rows) + "\n")
 
 
+def changed(vector: np.ndarray, text: str) -> np.ndarray:
+    """`vector` with the changes 'NAME*=F;NAME+=V;NAME-=V' to numbers named as in PARAM_NAMES."""
+    out = np.array(vector, dtype=np.float64)
+    for item in filter(None, (t.strip() for t in text.split(";"))):
+        match = re.fullmatch(r"(.+?)\s*([*+-])=\s*(\S+)", item)
+        if match is None or match[1] not in PARAM_NAMES:
+            raise SystemExit(f"--change: cannot read {item!r} (NAME*=F, NAME+=V or NAME-=V)")
+        k, value = PARAM_NAMES.index(match[1]), float(match[3])
+        out[k] = {"*": out[k] * value, "+": out[k] + value, "-": out[k] - value}[match[2]]
+    return out
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=500)
@@ -93,6 +106,12 @@ def main(argv=None) -> None:
         help="where the grasp errors go (flange: the numbers before issue 24)",
     )
     p.add_argument(
+        "--change",
+        default="",
+        help="a variant of the baseline: 'NAME*=F;NAME+=V;NAME-=V' with names of "
+        "skill.params.PARAM_NAMES, e.g. 'C[0,0]*=0.3;C[1,1]*=0.3'",
+    )
+    p.add_argument(
         "--deadband",
         default="0,0",
         help="force (N), moment (N m) dead bands of the "
@@ -109,7 +128,7 @@ def main(argv=None) -> None:
         vec = load_policy(args.policy).controller_vectors(specs)
         label = f"policy {args.policy}"
     else:
-        vec = first_baseline() if args.first else baseline_params()
+        vec = changed(first_baseline() if args.first else baseline_params(), args.change)
         label = f"{'first' if args.first else 'current'} baseline"
     start = time.perf_counter()
     config = TrialConfig(
