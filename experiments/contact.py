@@ -23,11 +23,13 @@ import time
 
 import numpy as np
 
+from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
+from mjx_peg.skill.search import SKILLS, skill_search
 from mjx_peg.skill.sensor import SensorConfig
 from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -117,7 +119,17 @@ def main(argv=None) -> None:
         help="force (N), moment (N m) dead bands of the "
         "wrench the compliance acts on (TrialConfig.force_deadband, moment_deadband)",
     )
+    cli.add_skill_option(p, tuple(SKILLS), "paper")
+    p.add_argument(
+        "--search",
+        default="",
+        help="the search's constants changed, 'NAME=V;...' with names of skill.search.SearchConfig,"
+        " e.g. 'press_accel=2;centre_gain=0'",
+    )
     args = p.parse_args(argv)
+    search = skill_search(args.skill).replace(**{
+        k.strip(): float(v) for k, v in (item.split("=") for item in args.search.split(";") if item)
+    })  # fmt: skip
     task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(0.05,), linear_error=0.004,
                       angular_error=math.radians(6.0), grasp_model=args.grasp_model)  # fmt: skip
     force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
@@ -137,6 +149,7 @@ def main(argv=None) -> None:
         sensor=sensor_variant(args.sensor),
         force_deadband=force_deadband,
         moment_deadband=moment_deadband,
+        search=search,
     )
     result = run_trials(specs, vec, engine="mujoco", config=config, threads=args.threads,
                         processes=args.processes)  # fmt: skip
@@ -145,7 +158,8 @@ def main(argv=None) -> None:
     times = result.time_s[result.success]
     p10, p50, p90 = np.percentile(times, [10, 50, 90]) if times.size else (np.nan,) * 3
     print(
-        f"{label}, sensor {args.sensor}, {args.shapes} 50 mm, {args.trials} trials, seed "
+        f"{label}, skill {args.skill} {search}, sensor {args.sensor}, {args.shapes} 50 mm, "
+        f"{args.trials} trials, seed "
         f"{args.seed}, {args.time_limit:g} s"
         f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"
     )

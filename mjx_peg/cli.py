@@ -184,6 +184,19 @@ def add_grasp_model_option(parser: argparse.ArgumentParser, models, default: str
     )
 
 
+def add_skill_option(parser: argparse.ArgumentParser, skills, default: str | None,
+                     default_text: str = "") -> None:  # fmt: skip
+    """--skill: the skill's contact search (skill.search.SKILLS)."""
+    parser.add_argument(
+        "--skill",
+        default=default,
+        choices=skills,
+        help="paper: the paper's compliant DMP as written; search: with the contact search, the "
+        "goal moved away from the centre of pressure of a peg resting on the board top "
+        f"(skill/search.py); default: {default_text or default}",
+    )
+
+
 def add_ray_option(parser: argparse.ArgumentParser) -> None:
     """--ray [ADDRESS]: the CPU engine's trials on a Ray cluster (train.py, eval.py)."""
     parser.add_argument(

@@ -19,8 +19,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-EVAL_CONFIG = {"full_time_limit": True, "contact_model": 1, "grasp_model": "flange"}
-TRAIN_CONFIG = {"action_map": "sigmoid", "grasp_model": "flange"}
+EVAL_CONFIG = {
+    "full_time_limit": True,
+    "contact_model": 1,
+    "grasp_model": "flange",
+    "skill": "paper",
+}
+TRAIN_CONFIG = {"action_map": "sigmoid", "grasp_model": "flange", "skill": "paper"}
 MANIFEST_ACTION_MAP = "sigmoid"
 
 

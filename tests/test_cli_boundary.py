@@ -435,6 +435,7 @@ def test_mujoco_warnings_go_to_the_output_directory_never_the_working_one(tmp_pa
     assert list((tmp_path / "cwd").iterdir()) == []
 
 
+@pytest.mark.serial  # reads the whole checkout's state: run alone (README's test command)
 def test_bad_input_leaves_a_clone_clean():
     """`git status` of the repository stays as it was after every CLI is given bad input from
     its root (subprocesses, as a user runs them); nothing is created in ignored places either."""
@@ -560,6 +561,7 @@ def test_train_rounds_its_budget_up_to_whole_iterations_and_says_so(tmp_path, ca
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # timed: run alone (README's test command)
 def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_path):
     """SIGINT in the middle of an iteration (the main thread waiting in the jitted PPO step,
     the CPU engine in a host callback): exit 130 within 3 s, every finished iteration kept;
@@ -586,8 +588,11 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
     assert took < 3.0, took
     assert "interrupted; rerun the same command to resume" in run.stderr.read()
     assert len(csv.read_text().splitlines()) == 9  # the first iteration, kept
-    for target in (out, tmp_path / "uninterrupted"):
-        done = subprocess.run([sys.executable, *argv, "--out", str(target)], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=900)  # fmt: skip
-        assert done.returncode == 0, done.stderr[-2000:]
+    # The resumed run and an uninterrupted one, side by side (one core each).
+    runs = [subprocess.Popen([sys.executable, *argv, "--out", str(target)], cwd=ROOT, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            for target in (out, tmp_path / "uninterrupted")]  # fmt: skip
+    for done in runs:
+        _, err = done.communicate(timeout=900)
+        assert done.returncode == 0, err[-2000:]
     assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()

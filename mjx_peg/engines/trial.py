@@ -23,6 +23,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.skill import dmp, sensor
 from mjx_peg.skill.control_step import Basis, ControlConfig
 from mjx_peg.skill.params import ControllerParams, controller_from_vector
+from mjx_peg.skill.search import SearchConfig
 from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
 
 
@@ -65,6 +66,9 @@ class TrialConfig:
     # paper's coupling
     force_deadband: float = 0.0
     moment_deadband: float = 0.0
+    # How the skill frees a peg resting on the board top (skill/search.py, an extension); the
+    # default, all off: the paper's skill. `skill.search.SKILLS` names the presets.
+    search: SearchConfig = dataclasses.field(default_factory=SearchConfig)
     chatter_window_s: float = 1.0  # s: the chatter metric averages the last window of a trial
     # A failure whose outcome can no longer change ends at once, flagged `settled` (see
     # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
@@ -214,6 +218,7 @@ def control_config(config: TrialConfig, xp=np) -> ControlConfig:
         torque_limits=xp.asarray(TORQUE_LIMITS),
         force_deadband=config.force_deadband,
         moment_deadband=config.moment_deadband,
+        search=config.search,
     )
 
 

@@ -9,6 +9,7 @@ from mjx_peg import cli
 from mjx_peg.engines import ENGINES, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILLS, skill_search
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -29,6 +30,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--seed", type=cli.SEED, default=1, help="default 1")
     cli.add_grasp_model_option(p, constants.GRASP_MODELS, "board")
+    cli.add_skill_option(p, tuple(SKILLS), "paper")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     args = p.parse_args(argv)
     shapes = [s.strip() for s in args.shapes.split(",") if s.strip()]
@@ -37,7 +39,7 @@ def main(argv=None) -> int:
     for shape in shapes:
         if shape not in constants.SHAPES:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
-    config = TrialConfig(time_limit_s=args.time_limit)
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(args.skill))
     tasks = [
         TaskConfig.from_mm_deg(
             (shape,), args.size, args.linear_mm, args.angular_deg, grasp_model=args.grasp_model

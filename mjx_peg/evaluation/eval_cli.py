@@ -38,8 +38,10 @@ from mjx_peg.evaluation.grid import (
     prepare_out_dir,
     range_path,
     run_evaluation,
+    trained_skill,
     write_outputs,
 )
+from mjx_peg.skill.search import SKILLS
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES
 
@@ -123,6 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
         "that has settled, at rest or repeating the same motion, ends early; same outcome)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
+    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
@@ -201,6 +204,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         time_limit_s=args.time_limit,
         full_time_limit=args.full_time_limit,
         grasp_model=args.grasp_model,
+        skill=args.skill or trained_skill(str(args.policy)),
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )

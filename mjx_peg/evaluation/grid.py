@@ -36,6 +36,7 @@ from mjx_peg.evaluation import stats as es
 from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_search
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
@@ -104,6 +105,8 @@ class EvalConfig:
     contact_model: int = CONTACT_MODEL
     # Where the grasp errors go (constants.GRASP_MODELS): "board", the paper's, or "flange"
     grasp_model: str = "board"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"
+    skill: str = "paper"
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -134,6 +137,7 @@ class EvalConfig:
             raise UsageError(
                 f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
             )
+        skill_search(self.skill)  # a known skill
         if not isinstance(self.full_time_limit, bool):
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
@@ -143,7 +147,11 @@ class EvalConfig:
             task_config(self, shape, 0.0, 0.0)
 
     def trial_config(self) -> TrialConfig:
-        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
+        return TrialConfig(
+            time_limit_s=self.time_limit_s,
+            end_settled=not self.full_time_limit,
+            search=skill_search(self.skill),
+        )
 
     @property
     def ranges(self) -> list[tuple[float, float]]:
@@ -259,6 +267,11 @@ def load_controller(policy: str) -> tuple[str, Controller]:
     npz = path if path.name == POLICY_FILE else path / POLICY_FILE
     digest = hashlib.sha256(npz.read_bytes()).hexdigest()
     return f"sha256:{digest}", loaded.controller_vectors
+
+
+def trained_skill(policy: str) -> str:
+    """The skill --policy was trained with: "paper" for the baseline (PolicyError if bad)."""
+    return "paper" if policy == "baseline" else load_policy(policy).skill
 
 
 def range_specs(config: EvalConfig, index: int) -> TrialSpec:
@@ -489,6 +502,7 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
             else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
         ),
         f"grasp errors: {GRASP_DESCRIPTION[config.grasp_model]}",
+        f"skill: {config.skill} ({SKILL_DESCRIPTIONS[config.skill]})",
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,

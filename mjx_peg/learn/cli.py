@@ -20,6 +20,7 @@ from mjx_peg import cli
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS
+from mjx_peg.skill.search import SKILLS
 from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
@@ -78,6 +79,7 @@ def parser() -> argparse.ArgumentParser:
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
+    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (paper)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -104,6 +106,7 @@ def resolve_config(args):
         "full_time_limit": args.full_time_limit or None,
         "action_map": args.action_map,
         "grasp_model": args.grasp_model,
+        "skill": args.skill,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:

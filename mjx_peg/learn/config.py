@@ -22,6 +22,7 @@ from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import skill_search
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -78,6 +79,9 @@ class TrainConfig:
     # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
     # paper's); config.json files without it were "flange" (the peg in the gripper)
     grasp_model: str = "board"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"; config.json
+    # files without it were "paper"
+    skill: str = "paper"
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -121,6 +125,7 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
+        skill_search(self.skill)  # a known skill
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -141,7 +146,11 @@ class TrainConfig:
         )
 
     def trial(self) -> TrialConfig:
-        return TrialConfig(time_limit_s=self.time_limit_s, end_settled=not self.full_time_limit)
+        return TrialConfig(
+            time_limit_s=self.time_limit_s,
+            end_settled=not self.full_time_limit,
+            search=skill_search(self.skill),
+        )
 
     def map_centre(self):
         """(38,) physical vector at action 0 of the centred map, or None for the sigmoid map."""

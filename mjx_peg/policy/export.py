@@ -48,6 +48,11 @@ class Policy:
     manifest: dict
     centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
 
+    @property
+    def skill(self) -> str:
+        """The skill it was trained with (skill.search.SKILLS); "paper" for runs made before."""
+        return compat.train_config(self.manifest.get("config", {}))["skill"]
+
     def act(self, obs) -> np.ndarray:
         """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
         return network.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))

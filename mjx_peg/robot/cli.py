@@ -31,6 +31,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
+from mjx_peg.skill.search import SKILLS, skill_search
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
+    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
@@ -188,7 +190,8 @@ def main(argv=None) -> int:
     specs = sample_trials(task, args.seed, args.trials)
     holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [controller_vector(policy, hole) for hole in holes]
-    config = TrialConfig(time_limit_s=args.time_limit)
+    skill = args.skill or ("paper" if isinstance(policy, str) else policy.skill)
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(skill))
     rows, start = [], time.perf_counter()
     bar = None
     if not args.no_progress:

@@ -60,6 +60,7 @@ from typing import NamedTuple
 
 from mjx_peg.skill import dmp, osc
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import SearchConfig, bounded_press, searched_offset
 
 
 class Skill(NamedTuple):
@@ -159,6 +160,8 @@ class ControlConfig(NamedTuple):
     # 0: the paper's literal coupling
     force_deadband: float = 0.0
     moment_deadband: float = 0.0
+    # the contact search (skill/search.py); the default, all off: the paper's skill
+    search: SearchConfig = SearchConfig()
 
 
 def _shrink(v, width: float):
@@ -183,16 +186,21 @@ def deadband(wrench, force: float, moment: float):
 
 
 def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measurement):
-    """(..., n) joint torques of the compliant DMP for one control period (Eqs. 2, 6, 10-14)."""
+    """(..., n) joint torques of the compliant DMP for one control period (Eqs. 2, 6, 10-14),
+    with the contact search of `config.search` where it is on (skill/search.py)."""
     tcp_vel = (meas.jac @ meas.qvel[..., None])[..., 0]
     y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
     s = dmp.phase(meas.t, config.tau, config.alpha_s)
     f = dmp.forcing(s, basis.weights, basis.centers, basis.widths)
     wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
     dy = dmp.compliance_offset(skill.compliance, wrench)
+    if config.search.active:
+        dy = searched_offset(config.search, dy, wrench)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)
+    if config.search.press_accel > 0:
+        ydd_task = bounded_press(config.search, ydd_task)
     ydd_world = osc.world_from_task_accel(ydd_task, skill.goal_rot)
     u = osc.osc_torque(
         meas.mass, meas.jac, meas.jdot_qdot, meas.bias, ydd_world, config.pinv_damping

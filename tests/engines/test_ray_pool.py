@@ -24,6 +24,10 @@ from mjx_peg.learn import cli as train_cli  # noqa: E402
 from mjx_peg.skill.baseline import baseline_params  # noqa: E402
 from mjx_peg.world.task import TaskConfig, sample_trials  # noqa: E402
 
+# One local Ray cluster at a time: under pytest-xdist (README's test command, --dist loadgroup)
+# these tests run one after another on one worker.
+pytestmark = pytest.mark.xdist_group("ray")
+
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,3", "--angular-deg", "1,4",
     "--trials", "3", "--time-limit", "0.3", "--shape", "square", "--engine", "mujoco",

@@ -350,6 +350,35 @@ def test_learned_policy_directory(tmp_path):
     assert (out / "grid.csv").read_text().count("\n") == 2
 
 
+def test_the_skill_is_the_policys_unless_given_and_old_evaluations_read_as_paper(tmp_path):
+    import json
+
+    from mjx_peg.policy.export import save_policy
+
+    run = tmp_path / "run"
+    layers = [(np.zeros((8, 38)), np.zeros(38))]
+    save_policy(run, layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8),
+                config={"skill": "search"})  # fmt: skip
+    argv = [
+        "--policy", str(run), "--grid", "custom", "--linear-mm", "1", "--angular-deg", "1",
+        "--trials", "1", "--time-limit", "0.2", "--shape", "square", "--engine", "mujoco",
+        "--no-progress",
+    ]  # fmt: skip
+    for extra, skill in (([], "search"), (["--skill", "paper"], "paper")):
+        out = tmp_path / f"eval_{skill}"
+        assert eval_cli.main([*argv, *extra, "--out", str(out)]) == 0
+        assert json.loads((out / "config.json").read_text())["config"]["skill"] == skill
+        assert f"skill: {skill} (" in (out / "summary.md").read_text()
+    config, _ = evaluation.read_eval_dir(tmp_path / "eval_search")
+    assert config.trial_config().search.centre_gain > 0
+    doc = json.loads((out / "config.json").read_text())
+    del doc["config"]["skill"]  # written before the contact search
+    (out / "config.json").write_text(json.dumps(doc))
+    config, _ = evaluation.read_eval_dir(out)
+    assert config.skill == "paper" and not config.trial_config().search.active
+    assert evaluation.trained_skill("baseline") == "paper"
+
+
 @pytest.mark.parametrize(
     "change, message",
     [

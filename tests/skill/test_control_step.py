@@ -1,11 +1,13 @@
 """The composed skill step: wrench referral, goal frame, torque at rest, NumPy == JAX."""
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from mjx_peg.engines.trial import TrialConfig, control_config, fitted_basis
 from mjx_peg.skill import control_step
 from mjx_peg.skill.baseline import baseline_controller
+from mjx_peg.skill.search import skill_search
 from mjx_peg.world.rotations import tool_down_rotation
 
 
@@ -66,8 +68,8 @@ def _inputs(rng, batch, params):
     return skill, args
 
 
-def _torque(skill, basis, args, xp=np):
-    config = control_config(TrialConfig(), xp)
+def _torque(skill, basis, args, xp=np, trial=None):
+    config = control_config(trial or TrialConfig(), xp)
     return control_step.skill_torque(config, skill, basis, control_step.Measurement(**args))
 
 
@@ -88,16 +90,24 @@ def test_at_rest_on_the_goal_the_torque_is_the_bias():
     np.testing.assert_allclose(u, args["bias"], atol=1e-9)
 
 
-def test_numpy_and_jax_agree(x64):
+@pytest.mark.parametrize("skill_name", ["paper", "search"])
+def test_numpy_and_jax_agree(x64, skill_name):
     import jax
     import jax.numpy as jnp
 
     rng = np.random.default_rng(2)
     skill, args = _inputs(rng, 16, baseline_controller())
+    trial = TrialConfig(search=skill_search(skill_name))
+    if skill_name == "search":  # half the rows pressed firmly enough to open the gate
+        args["wrench"][::2, 2] = -rng.uniform(10.0, 40.0, 8)
     basis = fitted_basis(TrialConfig().dmp)
-    u_np = _torque(skill, basis, args)
+    u_np = _torque(skill, basis, args, trial=trial)
+    if skill_name == "search":  # the pressed rows' goals moved (some torques are clamped)
+        u_paper = _torque(skill, basis, args)
+        assert (np.abs(u_np[::2] - u_paper[::2]).max(axis=1) > 1e-3).sum() >= 4
+        np.testing.assert_array_equal(u_np[1::2], u_paper[1::2])
     to_j = lambda tree: jax.tree.map(jnp.asarray, tree)  # noqa: E731
-    fn = jax.jit(lambda s, b, a: _torque(s, b, a, jnp))
+    fn = jax.jit(lambda s, b, a: _torque(s, b, a, jnp, trial))
     u_jax = np.asarray(fn(to_j(skill), to_j(basis), to_j(args)))
     np.testing.assert_allclose(u_jax, u_np, rtol=1e-9, atol=1e-9)
     assert np.all(np.abs(u_np) <= np.array([150, 150, 150, 28, 28, 28]) + 1e-12)

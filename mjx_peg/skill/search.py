@@ -1,0 +1,136 @@
+"""The contact search: how the skill frees a peg resting on the board top (an extension).
+
+The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10).
+A peg that lands on the rim stays there: static friction holds its tip until the lateral
+tracking force passes mu N, i.e. until a lateral goal offset s passes mu N (1 / K_e + C_xx)
+(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Three
+elements, each off by default, change that while the peg rests on something. In the goal
+frame (the tool's orientation at the goal: z points down, into the hole):
+
+    gate        g = clip((N - f_on) / (f_full - f_on), 0, 1),  N = -F_z  (the board pushing up)
+    press       ydd_z <= a_p                         the axial command, and so the press
+                                                     Lambda_zz a_p, bounded
+    lateral     dy_xy <- (1 - g (1 - c_lat)) dy_xy   a stiffer tip while resting: C_xx c_lat
+    centring    dy_xy <- dy_xy - k_cop g r,  r = (m_y, -m_x) / max(N, f_full)
+
+The centring is the paper's moment-to-shift coupling (C[0,4], C[1,3]) divided by the axial
+force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from
+the tcp) feels the moment m = r x (-N e_z) = N (-r_y, r_x, 0), so r = (m_y, -m_x) / N; the hole
+lies on the side of the face that does not touch, and the goal moves by -k_cop r. The bounded
+press and the stiffer tip lower the friction threshold; measured, both cost more than they free
+(docs/rim_escape.md), so `SKILLS["search"]` is the centring alone.
+
+Written over the array-API namespace of the inputs, batched over leading dimensions, like the
+rest of `skill/`; it imports neither numpy nor jax.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from mjx_peg._xp import namespace_of
+from mjx_peg.errors import UsageError
+
+
+@dataclasses.dataclass(frozen=True)
+class SearchConfig:
+    """The contact search's constants (not learned); the defaults, every element off: the paper's
+    skill."""
+
+    press_accel: float = 0.0  # m/s^2: a_p, the largest axial command into the hole; 0: unbounded
+    lateral_scale: float = 1.0  # c_lat: lateral compliance while resting, times C's x, y rows
+    centre_gain: float = 0.0  # k_cop: goal shift per metre of centre-of-pressure offset
+    force_on: float = 10.0  # N: f_on, the axial force where the gate starts to open
+    force_full: float = 20.0  # N: f_full, where it is fully open
+
+    def __post_init__(self):
+        for name in ("press_accel", "centre_gain"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise UsageError(f"SearchConfig.{name} must be a number >= 0, got {value!r}")
+        if not (math.isfinite(self.lateral_scale) and 0 <= self.lateral_scale <= 1):
+            raise UsageError(
+                f"SearchConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
+            )
+        if not (0 <= self.force_on < self.force_full < math.inf):
+            raise UsageError(
+                "SearchConfig needs 0 <= force_on < force_full, got "
+                f"{self.force_on!r}, {self.force_full!r}"
+            )
+
+    @property
+    def active(self) -> bool:
+        """Whether any element is on (else the control step is the paper's, bit for bit)."""
+        return self.press_accel > 0 or self.lateral_scale < 1 or self.centre_gain > 0
+
+    def replace(self, **changes) -> SearchConfig:
+        return dataclasses.replace(self, **changes)
+
+
+# The named skills of the CLIs: the paper's literal one, and ours with the contact search.
+SKILLS = {
+    "paper": SearchConfig(),
+    "search": SearchConfig(centre_gain=1.0),
+}
+
+
+SKILL_DESCRIPTIONS = {
+    "paper": "the paper's compliant DMP as written",
+    "search": "with the contact search: the goal moved away from the centre of pressure of a peg "
+    "resting on the board top, skill/search.py",
+}
+
+
+def skill_search(name: str) -> SearchConfig:
+    """The SearchConfig of a named skill (`SKILLS`)."""
+    if name not in SKILLS:
+        raise UsageError(f"unknown skill {name!r}: choose one of {', '.join(SKILLS)}")
+    return SKILLS[name]
+
+
+def resting_gate(config: SearchConfig, wrench):
+    """(...,) g in [0, 1]: how firmly the peg rests on something, from the axial force
+    N = -wrench[..., 2] (N; goal frame, z down: the board pushing the peg up is positive)."""
+    xp = namespace_of(wrench)
+    span = config.force_full - config.force_on
+    return xp.clip((-wrench[..., 2] - config.force_on) / span, 0.0, 1.0)
+
+
+def centre_of_pressure(wrench, min_force: float):
+    """(..., 2) r = (m_y, -m_x) / max(N, min_force): where on the tip's face (goal-frame x, y
+    from the tcp, m) an axial force N = -wrench[..., 2] with moment wrench[..., 3:5] acts."""
+    xp = namespace_of(wrench)
+    n = xp.maximum(-wrench[..., 2], min_force)
+    return xp.stack([wrench[..., 4], -wrench[..., 3]], axis=-1) / n[..., None]
+
+
+def searched_offset(config: SearchConfig, dy, wrench):
+    """(..., 6) the compliance's goal offset dy (..., 6) with the lateral and centring elements
+    applied, from the wrench (..., 6) the compliance sees."""
+    xp = namespace_of(dy, wrench)
+    g = resting_gate(config, wrench)[..., None]
+    lateral = dy[..., :2] * (1.0 - g * (1.0 - config.lateral_scale))
+    if config.centre_gain > 0:
+        lateral = lateral - config.centre_gain * g * centre_of_pressure(wrench, config.force_full)
+    return xp.concat([lateral, dy[..., 2:]], axis=-1)
+
+
+def bounded_press(config: SearchConfig, ydd):
+    """(..., 6) the task acceleration command ydd (..., 6) with its axial part (goal z, into the
+    hole) bounded by press_accel: the press the tcp can exert is then Lambda_zz press_accel."""
+    xp = namespace_of(ydd)
+    z = xp.minimum(ydd[..., 2:3], config.press_accel)
+    return xp.concat([ydd[..., :2], z, ydd[..., 3:]], axis=-1)
+
+
+__all__ = [
+    "SKILLS",
+    "SKILL_DESCRIPTIONS",
+    "SearchConfig",
+    "bounded_press",
+    "centre_of_pressure",
+    "resting_gate",
+    "searched_offset",
+    "skill_search",
+]
