@@ -151,6 +151,12 @@ def save_policy(
     return run_dir / POLICY_FILE
 
 
+def policy_skill(policy: str | Policy) -> str:
+    """The skill `policy` runs unless told otherwise: the one it was trained with, "paper" for
+    the hand-tuned baseline (the string "baseline")."""
+    return "paper" if isinstance(policy, str) else policy.skill
+
+
 def load_policy(path) -> Policy:
     """Load a policy from a run directory (or its policy.npz); PolicyError on any defect."""
     path = Path(path)

@@ -28,7 +28,7 @@ import numpy as np
 from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import load_policy
+from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.search import SKILLS, skill_search
@@ -190,8 +190,8 @@ def main(argv=None) -> int:
     specs = sample_trials(task, args.seed, args.trials)
     holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [controller_vector(policy, hole) for hole in holes]
-    skill = args.skill or ("paper" if isinstance(policy, str) else policy.skill)
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(skill))
+    search = skill_search(args.skill or policy_skill(policy))
+    config = TrialConfig(time_limit_s=args.time_limit, search=search)
     rows, start = [], time.perf_counter()
     bar = None
     if not args.no_progress:

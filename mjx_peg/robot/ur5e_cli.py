@@ -25,7 +25,7 @@ import numpy as np
 from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import load_policy
+from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.robot.runtime import HoleEstimate, SkillRun, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
@@ -253,8 +253,8 @@ def run(args, prog: str) -> int:
                 "transfer it first (train.py --preset transfer --init-from ...)"
             )
     vector = controller_vector(policy, hole)
-    skill = args.skill or ("paper" if isinstance(policy, str) else policy.skill)
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(skill))
+    search = skill_search(args.skill or policy_skill(policy))
+    config = TrialConfig(time_limit_s=args.time_limit, search=search)
     p = plan(hole, vector, config)
     if args.dry_run:
         print_plan(p, hole)
