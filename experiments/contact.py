@@ -27,6 +27,7 @@ from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
+from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
 from mjx_peg.skill.search import SKILLS, skill_search
@@ -119,7 +120,7 @@ def main(argv=None) -> None:
         help="force (N), moment (N m) dead bands of the "
         "wrench the compliance acts on (TrialConfig.force_deadband, moment_deadband)",
     )
-    cli.add_skill_option(p, tuple(SKILLS), "paper")
+    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
     p.add_argument(
         "--search",
         default="",
@@ -127,6 +128,8 @@ def main(argv=None) -> None:
         " e.g. 'press_accel=2;centre_gain=0'",
     )
     args = p.parse_args(argv)
+    policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
+    args.skill = args.skill or policy_skill(policy)
     search = skill_search(args.skill).replace(**{
         k.strip(): float(v) for k, v in (item.split("=") for item in args.search.split(";") if item)
     })  # fmt: skip
@@ -135,9 +138,7 @@ def main(argv=None) -> None:
     force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
     specs = sample_trials(task, args.seed, args.trials)
     if args.policy != "baseline":
-        from mjx_peg.policy.export import load_policy
-
-        vec = load_policy(args.policy).controller_vectors(specs)
+        vec = policy.controller_vectors(specs)
         label = f"policy {args.policy}"
     else:
         vec = changed(first_baseline() if args.first else baseline_params(), args.change)

@@ -24,6 +24,8 @@ from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS, frame_strip, plot_trial, run_demo
+from mjx_peg.policy.shipped import resolve_policy
+from mjx_peg.skill.search import skill_search
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
@@ -65,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         type=str,
-        help="RUN_DIR holding policy.npz, or baseline (the default)",
+        help="RUN_DIR holding policy.npz, a shipped policy's name (policies/), or baseline (the "
+        "default)",
     )
     p.add_argument(
         "--replay",
@@ -110,11 +113,15 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
             setattr(args, dest, value)
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
+    args.policy = resolve_policy(args.policy)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
+    from mjx_peg.evaluation.grid import trained_skill
+
     label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"
-    return specs, controller(specs), TrialConfig(time_limit_s=args.time_limit), label
+    search = skill_search(trained_skill(args.policy))  # the skill the policy was trained with
+    return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 
 
 def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:

@@ -41,6 +41,7 @@ from mjx_peg.evaluation.grid import (
     trained_skill,
     write_outputs,
 )
+from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import SKILLS
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES
@@ -66,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         type=cli.nonempty_path,
         required=True,
-        help="run directory with policy.npz, or 'baseline'",
+        help="run directory with policy.npz, a shipped policy's name (quick, paper, "
+        "transfer: policies/), or 'baseline'",
     )
     p.add_argument(
         "--out",
@@ -215,7 +217,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
     args = build_parser().parse_args(argv)
     out = args.out
-    policy = str(args.policy)
+    policy = resolve_policy(args.policy)
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
     if args.ray is not None:

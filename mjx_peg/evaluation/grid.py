@@ -35,6 +35,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
 from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy, policy_skill
+from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_search
 from mjx_peg.world.constants import GRASP_MODELS
@@ -262,6 +263,7 @@ def load_controller(policy: str) -> tuple[str, Controller]:
     if policy == "baseline":
         vector = baseline_params()
         return "baseline", lambda specs: np.tile(vector, (len(specs), 1))
+    policy = resolve_policy(policy)  # a shipped policy's name: its directory
     loaded = load_policy(policy)
     path = Path(policy)
     npz = path if path.name == POLICY_FILE else path / POLICY_FILE

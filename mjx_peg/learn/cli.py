@@ -1,6 +1,6 @@
 """`python train.py`: learn the 38 controller numbers with Brax PPO (presets in learn/config.py).
 
-    python train.py                                  # quick preset, CPU, a few minutes
+    python train.py                                  # quick preset, CPU, under 10 minutes
     python train.py --preset paper --out runs/paper  # the paper's training conditions
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
     python train.py --preset paper --out runs/paper  # after a crash or kill: resumes
@@ -79,7 +79,7 @@ def parser() -> argparse.ArgumentParser:
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
-    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (paper)")
+    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (search)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",

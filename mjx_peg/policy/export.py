@@ -24,7 +24,7 @@ import numpy as np
 from mjx_peg import compat
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json, write_npz
-from mjx_peg.policy import network, observation
+from mjx_peg.policy import network, observation, shipped
 from mjx_peg.skill import params
 
 SCHEMA = "mjx-peg-policy"
@@ -158,8 +158,11 @@ def policy_skill(policy: str | Policy) -> str:
 
 
 def load_policy(path) -> Policy:
-    """Load a policy from a run directory (or its policy.npz); PolicyError on any defect."""
+    """Load a policy from a run directory (or its policy.npz), or a shipped policy by name
+    (`policy/shipped.py`: "paper" is policies/paper); PolicyError on any defect."""
     path = Path(path)
+    if not path.exists() and str(path) in shipped.shipped_names():
+        path = shipped.SHIPPED_DIR / str(path)
     run_dir = path.parent if path.name == POLICY_FILE else path
     npz_path, manifest_path = run_dir / POLICY_FILE, run_dir / MANIFEST_FILE
     if not run_dir.is_dir():

@@ -29,6 +29,7 @@ from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy, policy_skill
+from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.search import SKILLS, skill_search
@@ -47,7 +48,11 @@ RESULTS = "runs.csv"
 
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
-    p.add_argument("--policy", default="baseline", help="RUN_DIR holding policy.npz, or baseline")
+    p.add_argument(
+        "--policy",
+        default="baseline",
+        help="RUN_DIR holding policy.npz, a shipped policy's name (policies/), or baseline",
+    )
     p.add_argument("--shape", choices=constants.SHAPES, default="circle")
     p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="size S (default 50)")
     p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=2.0, help="± linear error range")
@@ -62,6 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=500.0,
         help="torque command rate, a divisor of the 500 Hz physics (default 500, the UR5e's RTDE "
         "rate; the paper's UR5e took effort commands at 125)",
+    )
+    p.add_argument(
+        "--actuator-lag-ms",
+        type=cli.number(0, 100, "ms"),
+        default=0.0,
+        help="a first-order lag from the torque command to the joint torque (default 0: none; "
+        "5: a real arm's drives, a robustness variant)",
     )
     p.add_argument(
         "--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="simulated time per trial"
@@ -143,8 +155,7 @@ def _setup(args):
                                   grasp_model=args.grasp_model)  # fmt: skip
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
-    if args.policy != "baseline" and not Path(args.policy).exists():
-        raise UsageError(f"--policy {args.policy}: no such run directory")
+    args.policy = resolve_policy(args.policy)
     return task, steps
 
 
@@ -172,6 +183,8 @@ def main(argv=None) -> int:
             raise UsageError("--rehearse runs on the simulated UR5e: drop --robot-ip")
         if args.dry_run and (args.shadow or args.rehearse):
             raise UsageError("--dry-run connects to nothing: drop --shadow and --rehearse")
+        if args.actuator_lag_ms:
+            raise UsageError("--actuator-lag-ms is a property of the simulated arm: drop it")
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)
@@ -204,7 +217,8 @@ def main(argv=None) -> int:
         f.flush()
         try:
             for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
-                arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height)
+                arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height,
+                             actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
                 run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
                 row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
                        int(run.protective_stop), int(run.stopped == "settled"),

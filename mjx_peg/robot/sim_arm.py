@@ -8,6 +8,12 @@ bias; the F/T sensor still holds the previous step's reading, as on a real robot
 `mj_step2`, then `mj_step` for the rest of the command period: at `command_steps=1` this is the
 C engine's step, so a run of the runtime on this arm ends as the engine's trial.
 
+`actuator_lag_s` > 0 puts a first-order lag between the command and the joint torque, as a real
+arm's current loop and drive do (the robustness variant of issue 24: 5 ms): at every physics
+step of dt the applied torque moves towards the held command by 1 - exp(-dt / T_a), the exact
+response of T_a du/dt = u_cmd - u to the held command, sampled at each step's start. 0 (the
+default): the command is the torque, as in training.
+
 The F/T reading goes through the sensor's hardware stage (`sensor.hardware_step`: sampling, the
 trial's noise and bias, latency) as the engines do, once per read (at `command_steps=1`, once per
 control period, the engines' readings); the robot runtime applies the software filter.
@@ -36,9 +42,12 @@ class SimArm:
         command_steps: int = 1,
         success_height: float = 0.02,
         config: TrialConfig | None = None,
+        actuator_lag_s: float = 0.0,
     ):
         if type(command_steps) is not int or command_steps < 1:
             raise UsageError(f"command_steps must be a positive integer, got {command_steps!r}")
+        if not (np.isfinite(actuator_lag_s) and actuator_lag_s >= 0):
+            raise UsageError(f"actuator_lag_s must be a number >= 0, got {actuator_lag_s!r}")
         if not 0 <= index < len(specs):
             raise UsageError(f"trial index {index} is outside the {len(specs)} trials")
         s = specs.take([index])
@@ -49,6 +58,10 @@ class SimArm:
         self.ids = ids = scene.scene_ids(m)
         scene.start_trial(s, 0, m, d, ids)
         self.hold_torque = d.ctrl[ids.actuator_ids].copy()
+        # the lag's state: the torque the joints get, from the set-up's holding torque
+        dt = float(m.opt.timestep)
+        self.lag_keep = float(np.exp(-dt / actuator_lag_s)) if actuator_lag_s > 0 else 0.0
+        self.applied = self.hold_torque.copy()
         self.command_steps = command_steps
         self.period = command_steps * float(m.opt.timestep)
         self.success_height = success_height
@@ -104,11 +117,21 @@ class SimArm:
         )
 
     def send(self, torque: np.ndarray) -> None:
-        m, d = self.model, self.data
-        d.ctrl[self.ids.actuator_ids] = np.where(np.isfinite(torque), torque, 0.0)
-        mujoco.mj_step2(m, d)
-        if self.command_steps > 1:
-            mujoco.mj_step(m, d, nstep=self.command_steps - 1)
+        m, d, actuators = self.model, self.data, self.ids.actuator_ids
+        command = np.where(np.isfinite(torque), torque, 0.0)
+        if self.lag_keep == 0.0:  # no lag: the command is held over its period
+            d.ctrl[actuators] = command
+            mujoco.mj_step2(m, d)
+            if self.command_steps > 1:
+                mujoco.mj_step(m, d, nstep=self.command_steps - 1)
+        else:
+            for k in range(self.command_steps):
+                self.applied = self.lag_keep * self.applied + (1.0 - self.lag_keep) * command
+                d.ctrl[actuators] = self.applied
+                if k == 0:
+                    mujoco.mj_step2(m, d)
+                else:
+                    mujoco.mj_step(m, d)
         self.steps += self.command_steps
 
     def hold(self) -> None:

@@ -26,6 +26,7 @@ from mjx_peg import cli
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy, policy_skill
+from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRun, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
@@ -243,9 +244,7 @@ def run(args, prog: str) -> int:
     hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0)
     policy = args.policy
     if policy != "baseline":
-        if not Path(policy).exists():
-            raise UsageError(f"--policy {policy}: no such run directory")
-        policy = load_policy(policy)
+        policy = load_policy(resolve_policy(policy))
         shapes = trained_shapes(policy)
         if shapes is not None and args.shape not in shapes:
             raise UsageError(

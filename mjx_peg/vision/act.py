@@ -173,10 +173,16 @@ def run_act(
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    config = TrialConfig(time_limit_s=time_limit_s)
+    from mjx_peg.policy.export import load_policy, policy_skill
+    from mjx_peg.skill.search import skill_search
+
+    # the skill the policy was trained with ("paper" for the baseline)
+    skill = policy_skill(policy if policy == "baseline" else load_policy(policy))
+    config = TrialConfig(time_limit_s=time_limit_s, search=skill_search(skill))
     rows = []
     summary = {
         "policy": policy,
+        "skill": skill,
         "trials_per_shape": trials,
         "size_mm": size * 1000,
         "seed": seed,
@@ -301,6 +307,8 @@ def summary_markdown(summary: dict) -> str:
     lines = [
         f"# Vision to action: policy {summary['policy']}, S = {summary['size_mm']:g} mm, "
         f"{n} trials per shape, seed {summary['seed']}",
+        "",
+        f"Skill: {summary.get('skill', 'paper')}.",
         "",
         f"Grasp errors uniform within +-{TILT_DEG:g} deg tilt and +-{100 * GRASP_DZ_FRACTION:g} % "
         f"of S/2 height (the paper's maxima); {summary['time_limit_s']:g} s limit; C MuJoCo "

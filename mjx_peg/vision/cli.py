@@ -24,6 +24,7 @@ from pathlib import Path
 
 from mjx_peg import cli
 from mjx_peg.errors import UsageError
+from mjx_peg.policy.shipped import resolve_policy
 
 PROG = "mjx-peg-vision"
 DEFAULT_MODEL = Path("runs/vision/model")
@@ -84,7 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     a = sub.add_parser("act", help="vision to action: trials with the localizer's estimates")
     a.add_argument("--model", type=path, default=DEFAULT_MODEL)
-    a.add_argument("--policy", default="baseline", help="run directory with policy.npz or baseline")
+    a.add_argument(
+        "--policy",
+        default="baseline",
+        help="run directory with policy.npz, a shipped policy's name (policies/), or baseline",
+    )
     a.add_argument("--out", type=path, required=True)
     a.add_argument("--shapes", default="circle,square", help="comma-separated")
     a.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="S, one of 25, 50, 60")
@@ -209,8 +214,7 @@ def _act(args) -> str:
         )
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
-    if args.policy != "baseline" and not Path(args.policy).exists():
-        raise UsageError(f"--policy {args.policy}: no such run directory")
+    args.policy = resolve_policy(args.policy)
     cli.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
     from mjx_peg.vision.localizer import Localizer

@@ -77,7 +77,7 @@ def test_bad_replay_is_one_clear_line(eval_dir, tmp_path, capsys, extra, message
     [
         (["--replay", "NO_DIR", "--range", "0"], "holds no config.json"),
         (["--range", "0"], "--range and --trial need --replay EVAL_DIR"),
-        (["--policy", "NO_DIR"], "is not a directory"),
+        (["--policy", "NO_DIR"], "no such run directory, and no shipped policy"),
         (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
     ],
 )

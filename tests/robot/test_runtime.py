@@ -89,6 +89,32 @@ def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     assert abs(run.commands - result.steps[0]) <= config.settle_steps // 10
 
 
+def test_actuator_lag_is_a_first_order_response_to_the_command():
+    """With a 5 ms lag, the joints get the set-up's holding torque plus 1 - exp(-t / 5 ms) of a
+    step in the command, at every physics step (2 ms); 63 % of it after 5 ms (2.5 steps)."""
+    specs = _specs(n=1)
+    lagged, direct = SimArm(specs, 0, actuator_lag_s=0.005), SimArm(specs, 0)
+    hold = lagged.hold_torque.copy()
+    step = np.array([2.0, -3.0, 1.0, 0.5, -0.5, 0.2])
+    applied = []
+    for arm in (lagged, direct):
+        arm.read()
+        arm.send(hold + step)
+    applied.append(lagged.data.ctrl[lagged.ids.actuator_ids] - hold)
+    for _ in range(4):
+        lagged.read()
+        lagged.send(hold + step)
+        applied.append(lagged.data.ctrl[lagged.ids.actuator_ids] - hold)
+    k = np.arange(1, 6)[:, None]
+    np.testing.assert_allclose(applied, (1 - np.exp(-k * 0.002 / 0.005)) * step, rtol=1e-12)
+    np.testing.assert_allclose(direct.data.ctrl[direct.ids.actuator_ids], hold + step)
+    four = SimArm(specs, 0, command_steps=4, actuator_lag_s=0.005)  # one command, four steps
+    four.read()
+    four.send(four.hold_torque + step)
+    np.testing.assert_allclose(four.data.ctrl[four.ids.actuator_ids] - four.hold_torque,
+                               (1 - np.exp(-4 * 0.002 / 0.005)) * step, rtol=1e-12)  # fmt: skip
+
+
 def test_command_rate_holds_the_torque_between_commands():
     specs, vec = _specs(n=1), baseline_params()
     arm = SimArm(specs, 0, command_steps=4)
@@ -315,4 +341,6 @@ def test_sim_arm_rejects_bad_arguments():
         SimArm(specs, 0, command_steps=0)
     with pytest.raises(ValueError, match="trial index 1 is outside the 1 trials"):
         SimArm(specs, 1)
+    with pytest.raises(ValueError, match="actuator_lag_s must be a number >= 0"):
+        SimArm(specs, 0, actuator_lag_s=-0.005)
     assert constants.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
