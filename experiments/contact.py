@@ -10,13 +10,15 @@ engine with the default TrialConfig (failures that have settled end early unless
 peak sensed force, chatter), the time to insert, the physics steps per second and the failure
 taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the
 first hand-tuned baseline instead of the current one; `--policy RUN_DIR`: a trained policy.
-`--sensor` changes one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`). `--csv`: one
-row per trial, for paired comparisons (`experiments/contact_table.py`).
+`--sensor` changes one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F`
+gives every trial the friction F. `--csv`: one row per trial, for paired comparisons
+(`experiments/contact_table.py`).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import re
 import time
@@ -100,6 +102,7 @@ def main(argv=None) -> None:
     p.add_argument("--processes", type=int, default=None, help="lanes in worker processes")
     p.add_argument("--policy", default="baseline", help="'baseline' or a training run directory")
     p.add_argument("--sensor", default="nominal", choices=SENSOR_VARIANTS)
+    p.add_argument("--friction", type=float, help="every trial's friction (default: drawn)")
     p.add_argument("--csv", help="write one row per trial here")
     p.add_argument("--shapes", default="circle,square", help="comma-separated (50 mm each)")
     p.add_argument(
@@ -137,6 +140,8 @@ def main(argv=None) -> None:
                       angular_error=math.radians(6.0), grasp_model=args.grasp_model)  # fmt: skip
     force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
     specs = sample_trials(task, args.seed, args.trials)
+    if args.friction is not None:  # the same trials, one friction
+        specs = dataclasses.replace(specs, friction=np.full(len(specs), args.friction))
     if args.policy != "baseline":
         vec = policy.controller_vectors(specs)
         label = f"policy {args.policy}"
@@ -159,7 +164,9 @@ def main(argv=None) -> None:
     times = result.time_s[result.success]
     p10, p50, p90 = np.percentile(times, [10, 50, 90]) if times.size else (np.nan,) * 3
     print(
-        f"{label}, skill {args.skill} {search}, sensor {args.sensor}, {args.shapes} 50 mm, "
+        f"{label}, skill {args.skill} {search}, sensor {args.sensor}, "
+        f"{'friction ' + format(args.friction, 'g') + ', ' if args.friction is not None else ''}"
+        f"{args.shapes} 50 mm, "
         f"{args.trials} trials, seed "
         f"{args.seed}, {args.time_limit:g} s"
         f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"

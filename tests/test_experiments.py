@@ -38,7 +38,9 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
     nominal, nofilter = tmp_path / "nominal.csv", tmp_path / "nofilter.csv"
     out = run_script("experiments/contact.py", *tiny, "--csv", nominal)
     assert "3 trials" in out and "physics steps" in out
-    run_script("experiments/contact.py", *tiny, "--sensor", "nofilter", "--csv", nofilter)
+    out = run_script("experiments/contact.py", *tiny, "--sensor", "nofilter", "--friction", 0.2,
+                     "--policy", "quick", "--csv", nofilter)  # fmt: skip
+    assert "policy quick, skill search" in out and "friction 0.2," in out  # the policy's skill
     with open(nominal) as f:
         rows = list(csv.DictReader(f))
     assert [int(r["trial"]) for r in rows] == [0, 1, 2]

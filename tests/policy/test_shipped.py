@@ -46,13 +46,17 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 
 
 def test_the_shipped_policies_load_and_say_how_they_were_made():
-    """Every policy under policies/ loads, and its provenance names the commit and command."""
+    """The README's policies are shipped; each loads, runs its own skill, and its provenance
+    names the commit and command that trained it."""
     names = shipped.shipped_names()
+    assert {"quick", "paper", "transfer"} <= set(names)
     for name in names:
         policy = load_policy(name)
         vectors = policy.vectors_for(np.zeros((2, 8)))
         assert vectors.shape == (2, 38) and np.all(np.isfinite(vectors))
-        provenance = json.loads((shipped.SHIPPED_DIR / name / "provenance.json").read_text())
+        folder = shipped.SHIPPED_DIR / name
+        assert policy.skill == json.loads((folder / "config.json").read_text())["skill"]
+        provenance = json.loads((folder / "provenance.json").read_text())
         assert len(provenance["commit"]) == 40 and "train.py" in provenance["command"]
 
 
