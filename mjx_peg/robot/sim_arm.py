@@ -9,7 +9,7 @@ bias; the F/T sensor still holds the previous step's reading, as on a real robot
 C engine's step, so a run of the runtime on this arm ends as the engine's trial.
 
 `actuator_lag_s` > 0 puts a first-order lag between the command and the joint torque, as a real
-arm's current loop and drive do (the robustness variant of issue 24: 5 ms): at every physics
+arm's current loop and drive do (a UR5e's: a few ms): at every physics
 step of dt the applied torque moves towards the held command by 1 - exp(-dt / T_a), the exact
 response of T_a du/dt = u_cmd - u to the held command, sampled at each step's start. 0 (the
 default): the command is the torque, as in training.
