@@ -19,7 +19,8 @@ from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
-from mjx_peg.evaluation.grid import load_controller, trained_skill
+from mjx_peg.evaluation.grid import load_controller
+from mjx_peg.policy.export import policy_skill
 from mjx_peg.skill.search import SKILLS, skill_search
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -45,7 +46,7 @@ def parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     _, controller = load_controller(args.policy)
-    skill = args.skill or trained_skill(args.policy)
+    skill = args.skill or policy_skill(args.policy)
     config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(skill))
     saved = {}
     for shape in args.shape.split(","):

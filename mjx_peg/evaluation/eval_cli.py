@@ -38,9 +38,9 @@ from mjx_peg.evaluation.grid import (
     prepare_out_dir,
     range_path,
     run_evaluation,
-    trained_skill,
     write_outputs,
 )
+from mjx_peg.policy.export import policy_skill
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import SKILLS
 from mjx_peg.world.constants import GRASP_MODELS
@@ -206,7 +206,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         time_limit_s=args.time_limit,
         full_time_limit=args.full_time_limit,
         grasp_model=args.grasp_model,
-        skill=args.skill or trained_skill(str(args.policy)),
+        skill=args.skill or policy_skill(args.policy),
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )

@@ -34,7 +34,7 @@ from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
 from mjx_peg.outdir import OutDir, write_npz
-from mjx_peg.policy.export import POLICY_FILE, load_policy, policy_skill
+from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_search
@@ -269,11 +269,6 @@ def load_controller(policy: str) -> tuple[str, Controller]:
     npz = path if path.name == POLICY_FILE else path / POLICY_FILE
     digest = hashlib.sha256(npz.read_bytes()).hexdigest()
     return f"sha256:{digest}", loaded.controller_vectors
-
-
-def trained_skill(policy: str) -> str:
-    """The skill --policy was trained with: "paper" for the baseline (PolicyError if bad)."""
-    return policy_skill(policy if policy == "baseline" else load_policy(policy))
 
 
 def range_specs(config: EvalConfig, index: int) -> TrialSpec:

@@ -151,10 +151,13 @@ def save_policy(
     return run_dir / POLICY_FILE
 
 
-def policy_skill(policy: str | Policy) -> str:
+def policy_skill(policy) -> str:
     """The skill `policy` runs unless told otherwise: the one it was trained with, "paper" for
-    the hand-tuned baseline (the string "baseline")."""
-    return "paper" if isinstance(policy, str) else policy.skill
+    the hand-tuned baseline (the string "baseline"). `policy`: a loaded Policy, "baseline", or
+    what `load_policy` takes (PolicyError if that is bad)."""
+    if isinstance(policy, Policy):
+        return policy.skill
+    return "paper" if str(policy) == "baseline" else load_policy(policy).skill
 
 
 def load_policy(path) -> Policy:

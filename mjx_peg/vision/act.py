@@ -173,11 +173,10 @@ def run_act(
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    from mjx_peg.policy.export import load_policy, policy_skill
+    from mjx_peg.policy.export import policy_skill
     from mjx_peg.skill.search import skill_search
 
-    # the skill the policy was trained with ("paper" for the baseline)
-    skill = policy_skill(policy if policy == "baseline" else load_policy(policy))
+    skill = policy_skill(policy)  # the skill the policy was trained with
     config = TrialConfig(time_limit_s=time_limit_s, search=skill_search(skill))
     rows = []
     summary = {

@@ -19,6 +19,7 @@ from mjx_peg.evaluation.plots import (
     success_heatmap,
     time_heatmap,
 )
+from mjx_peg.policy.export import policy_skill
 
 REPO = Path(__file__).resolve().parents[2]
 PAPER_TEX = REPO.parent / "shared" / "paper" / "spector-zacksenhouse-compliant-dmp.tex"
@@ -376,7 +377,7 @@ def test_the_skill_is_the_policys_unless_given_and_old_evaluations_read_as_paper
     (out / "config.json").write_text(json.dumps(doc))
     config, _ = evaluation.read_eval_dir(out)
     assert config.skill == "paper" and not config.trial_config().search.active
-    assert evaluation.trained_skill("baseline") == "paper"
+    assert policy_skill("baseline") == "paper"
 
 
 @pytest.mark.parametrize(
