@@ -105,6 +105,8 @@ def main(argv=None) -> None:
     p.add_argument("--friction", type=float, help="every trial's friction (default: drawn)")
     p.add_argument("--csv", help="write one row per trial here")
     p.add_argument("--shapes", default="circle,square", help="comma-separated (50 mm each)")
+    p.add_argument("--linear-mm", type=float, default=4.0, help="localization error range, +-mm")
+    p.add_argument("--angular-deg", type=float, default=6.0, help="grasp tilt range, +-deg")
     p.add_argument(
         "--grasp-model",
         default="board",
@@ -136,8 +138,10 @@ def main(argv=None) -> None:
     search = skill_search(args.skill).replace(**{
         k.strip(): float(v) for k, v in (item.split("=") for item in args.search.split(";") if item)
     })  # fmt: skip
-    task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(0.05,), linear_error=0.004,
-                      angular_error=math.radians(6.0), grasp_model=args.grasp_model)  # fmt: skip
+    task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(0.05,),
+                      linear_error=args.linear_mm / 1000,
+                      angular_error=math.radians(args.angular_deg),
+                      grasp_model=args.grasp_model)  # fmt: skip
     force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
     specs = sample_trials(task, args.seed, args.trials)
     if args.friction is not None:  # the same trials, one friction
@@ -166,7 +170,7 @@ def main(argv=None) -> None:
     print(
         f"{label}, skill {args.skill} {search}, sensor {args.sensor}, "
         f"{'friction ' + format(args.friction, 'g') + ', ' if args.friction is not None else ''}"
-        f"{args.shapes} 50 mm, "
+        f"{args.shapes} 50 mm, +-{args.linear_mm:g} mm / +-{args.angular_deg:g} deg, "
         f"{args.trials} trials, seed "
         f"{args.seed}, {args.time_limit:g} s"
         f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"

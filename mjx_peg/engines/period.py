@@ -10,7 +10,8 @@ reading one physics step old):
 2. `advance`, for a trial that goes on: the F/T pipeline (`skill.sensor`) on the tared reading;
    the contact metrics (peak sensed force, the 150 N protective stop, the chatter ring of the
    true axial force); the compliance damping W_k = a_c W_(k-1) + (1 - a_c) F_k (Eq. 4 with
-   D_c = T_c K_c, `skill.control_step`); the settle test; the control step's joint torques.
+   D_c = T_c K_c, `skill.control_step`); the search's goal rotation (`search.aligned_rotation`); the
+   settle test; the control step's joint torques.
 3. `result`: what an ended trial records (`TrialResult`'s fields).
 
 `period` is 1 then 2. Written over the array-API namespace of the inputs like `skill/`: the C
@@ -41,8 +42,10 @@ from mjx_peg.skill.control_step import (
     Skill,
     external_wrench,
     skill_torque,
+    tcp_height,
     wrench_to_goal,
 )
+from mjx_peg.skill.search import aligned_rotation
 
 
 class TrialConsts(NamedTuple):
@@ -68,6 +71,7 @@ class TrialState(NamedTuple):
     chatter_ring: object  # (..., W) |F_k - F_(k-1)| of the true axial force at k mod W, k >= 1
     axial: object  # (...,) N: the last period's true axial force
     settle: SettleState
+    aligned: object  # (..., 3) rad: the goal's rotation found by the search's alignment
 
 
 class PeriodMeasurement(NamedTuple):
@@ -131,6 +135,7 @@ def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
         chatter_ring=xp.zeros((*batch, config.chatter_steps), dtype=dtype),
         axial=xp.zeros(batch, dtype=dtype),
         settle=settle_start(batch, xp),
+        aligned=xp.zeros((*batch, 3), dtype=dtype),
     )
 
 
@@ -190,6 +195,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
     a = config.coupling_pole
     coupled = a * state.coupled + (1.0 - a) * wrench
+    height = tcp_height(consts.skill, meas.tcp_pos)
+    aligned = aligned_rotation(control.search, state.aligned, coupled, height, config.timestep)
     settle = state.settle
     if config.end_settled:
         settle = settle_update(settle, step, meas.qvel, meas.tcp_pos, coupled, config)
@@ -207,10 +214,11 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
             mass=meas.mass,
             bias=meas.bias,
             wrench=coupled,
+            aligned=aligned,
         ),
     )
     torques = xp.where(xp.isfinite(torques), torques, 0.0)
-    new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle)
+    new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle, aligned)
     return new, torques, coupled
 
 

@@ -35,7 +35,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
 from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy
-from mjx_peg.policy.shipped import resolve_policy
+from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy, shipped_names
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_search
 from mjx_peg.world.constants import GRASP_MODELS
@@ -313,8 +313,10 @@ def prepare_out_dir(
         out.prepare(plan)  # config.json rewritten unchanged: writable (or one line)
         return out.path
     doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "config": config.to_json()}
-    if policy_dir is not None:
-        doc["policy_dir"] = str(Path(policy_dir).resolve())
+    if policy_dir is not None:  # a shipped policy by its name: the same on every checkout
+        path = Path(policy_dir).resolve()
+        shipped = path.parent == SHIPPED_DIR and path.name in shipped_names()
+        doc["policy_dir"] = path.name if shipped else str(path)
     out.prepare(plan, doc, note)
     cli.prepare_dir(out.path / RANGES_DIR)
     return out.path

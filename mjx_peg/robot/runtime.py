@@ -49,9 +49,11 @@ from mjx_peg.skill.control_step import (
     make_skill,
     skill_torque,
     start_state,
+    tcp_height,
     wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import aligned_rotation
 from mjx_peg.world import constants
 from mjx_peg.world.task import goal_pose
 
@@ -128,6 +130,7 @@ class SkillRuntime:
         self.alpha = np.array([math.exp(-2.0 * math.pi * cfg.timestep * cfg.sensor.cutoff_hz)])
         self.filtered = np.zeros((1, 6))
         self.coupled = np.zeros((1, 6))
+        self.aligned = np.zeros((1, 3))  # the goal's rotation the search's alignment found (rad)
         self.tool_force = self.peak_force = 0.0  # N: the last and the largest sensed force
         self.settle = settle_start((1,))
         self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
@@ -138,7 +141,7 @@ class SkillRuntime:
         self.tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
         self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
-        self.filtered[:], self.coupled[:], self.tool_force = 0.0, 0.0, 0.0
+        self.filtered[:], self.coupled[:], self.aligned[:], self.tool_force = 0.0, 0.0, 0.0, 0.0
         self.peak_force = 0.0
         self.t0 = self.last_t = state.t
 
@@ -185,6 +188,9 @@ class SkillRuntime:
         a = cfg.coupling_pole
         self.coupled = a * self.coupled + (1.0 - a) * wrench
         wrench = self.coupled
+        height = tcp_height(self.skill, b(state.tcp_pos))
+        dt = cfg.timestep * self.period_steps  # the command's period
+        self.aligned = aligned_rotation(self.control.search, self.aligned, wrench, height, dt)
         meas = Measurement(
             t=np.array([self.elapsed(state)]),
             tcp_pos=b(state.tcp_pos),
@@ -195,6 +201,7 @@ class SkillRuntime:
             mass=b(state.mass),
             bias=b(state.bias),
             wrench=wrench,
+            aligned=self.aligned,
         )
         u = skill_torque(self.control, self.skill, self.basis, meas)[0]
         if not np.all(np.isfinite(u)):

@@ -125,6 +125,12 @@ def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, lever_world, g
     )
 
 
+def tcp_height(skill: Skill, tcp_pos):
+    """(...,) m: the tcp's height over its goal, along the goal's z (which points down)."""
+    xp = tcp_pos.__array_namespace__()
+    return -xp.sum(skill.goal_rot[..., :, 2] * (tcp_pos - skill.goal_pos), axis=-1)
+
+
 def task_state(skill: Skill, tcp_pos, tcp_rot, tcp_vel):
     """y, yd (..., 6) of the tcp in the goal frame; tcp_vel (..., 6) = [linear, angular], world."""
     return osc.task_state(
@@ -146,6 +152,9 @@ class Measurement(NamedTuple):
     # (..., 6) the sensed external wrench at the tcp, goal frame, after the F/T pipeline
     # (skill/sensor.py) and the compliance damping's low-pass (module docstring)
     wrench: object
+    # (..., 3) the goal's rotation the contact search's alignment has found
+    # (`search.aligned_rotation`, carried by the caller); None: none
+    aligned: object = None
 
 
 class ControlConfig(NamedTuple):
@@ -195,7 +204,7 @@ def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measur
     wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
     dy = dmp.compliance_offset(skill.compliance, wrench)
     if config.search.active:
-        dy = searched_offset(config.search, dy, wrench)
+        dy = searched_offset(config.search, dy, wrench, meas.aligned)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)
@@ -305,6 +314,7 @@ __all__ = [
     "skill_torque",
     "start_state",
     "task_state",
+    "tcp_height",
     "external_wrench",
     "wrench_in_goal_frame",
     "wrench_to_goal",

@@ -349,6 +349,11 @@ def test_learned_policy_directory(tmp_path):
     assert config["config"]["policy"].startswith("sha256:")
     assert config["policy_dir"] == str(run.resolve())
     assert (out / "grid.csv").read_text().count("\n") == 2
+    # a shipped policy is recorded by its name, which every checkout resolves
+    argv[argv.index(str(run))], argv[-1] = "paper", str(tmp_path / "eval_shipped")
+    assert eval_cli.main(argv) == 0
+    shipped = json.loads((tmp_path / "eval_shipped" / "config.json").read_text())
+    assert shipped["policy_dir"] == "paper"
 
 
 def test_the_skill_is_the_policys_unless_given_and_old_evaluations_read_as_paper(tmp_path):

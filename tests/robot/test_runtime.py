@@ -72,6 +72,25 @@ def test_simulated_arm_runs_the_engines_trial():
             assert np.abs(run.log["wrench"][1:200]).max() > 1e-3  # the noise is there
 
 
+def test_simulated_arm_runs_the_engines_alignment():
+    """The alignment's goal rotation is carried by the runtime as by the engine: through holes
+    tilted up to 12 deg, the same outcomes, times and commands."""
+    from mjx_peg.skill.search import skill_search
+
+    task = TaskConfig(shapes=("circle",), linear_error=0.001, angular_error=np.deg2rad(12.0))
+    specs, vec = sample_trials(task, 3, 8).take([0, 1, 4]), baseline_params()
+    config = TrialConfig(time_limit_s=6.0, search=skill_search("align"))
+    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), config,
+                                    workers=1)  # fmt: skip
+    assert results.success.all()  # each went deep enough for the tilt to adapt
+    for i in range(len(specs)):
+        arm = SimArm(specs, i)
+        run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, i), config),
+                        done=arm.inserted)  # fmt: skip
+        assert run.success and run.commands == results.steps[i]
+        assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
+
+
 def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     """A failure that settles (almost no translational stiffness: the arm hovers at rest, the
     wrench it senses steady) stops the runtime with "settled" at the control period at which the

@@ -90,7 +90,7 @@ def test_at_rest_on_the_goal_the_torque_is_the_bias():
     np.testing.assert_allclose(u, args["bias"], atol=1e-9)
 
 
-@pytest.mark.parametrize("skill_name", ["paper", "search"])
+@pytest.mark.parametrize("skill_name", ["paper", "search", "align"])
 def test_numpy_and_jax_agree(x64, skill_name):
     import jax
     import jax.numpy as jnp
@@ -98,8 +98,10 @@ def test_numpy_and_jax_agree(x64, skill_name):
     rng = np.random.default_rng(2)
     skill, args = _inputs(rng, 16, baseline_controller())
     trial = TrialConfig(search=skill_search(skill_name))
-    if skill_name == "search":  # half the rows pressed firmly enough to open the gate
+    if skill_name != "paper":  # half the rows pressed firmly enough to open the gate
         args["wrench"][::2, 2] = -rng.uniform(10.0, 40.0, 8)
+    if skill_name == "align":  # the goal turned by what the alignment found
+        args["aligned"] = rng.normal(0.0, 0.1, (16, 3))
     basis = fitted_basis(TrialConfig().dmp)
     u_np = _torque(skill, basis, args, trial=trial)
     if skill_name == "search":  # the pressed rows' goals moved (some torques are clamped)
