@@ -40,7 +40,7 @@ that tilts it further into the hole, and the integral wedges it (on docs/tilted_
 trials, d_a = 10 mm lost 5 of the baseline's successes, 20 mm none). The yaw (a_z) starts with the
 press: a polygon enters only once it is turned. Measured (docs/tilted_hole.md): on 60 trials
 at +-2 mm / +-12 deg, 58.3 % -> 83.3 % (the tilt alone 71.7 %), the median time 7.6 s -> 3.8 s,
-no peg left wedged of 14; on the 500 trials at +-4 mm / +-6 deg, 83.0 % -> 84.4 % and the time
+no peg left wedged of 14; on the 500 trials at +-4 mm / +-6 deg, 83.0 % -> 84.6 % and the time
 p90 18.4 s -> 8.3 s. `SKILLS["align"]` is the centring and the alignment.
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
