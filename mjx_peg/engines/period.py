@@ -42,7 +42,6 @@ from mjx_peg.skill.control_step import (
     Skill,
     external_wrench,
     skill_torque,
-    tcp_height,
     wrench_to_goal,
 )
 from mjx_peg.skill.search import aligned_rotation
@@ -195,8 +194,9 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
     a = config.coupling_pole
     coupled = a * state.coupled + (1.0 - a) * wrench
-    height = tcp_height(consts.skill, meas.tcp_pos)
-    aligned = aligned_rotation(control.search, state.aligned, coupled, height, config.timestep)
+    skill = consts.skill
+    aligned = aligned_rotation(control.search, state.aligned, coupled, meas.tcp_pos,
+                               skill.goal_pos, skill.goal_rot, config.timestep)  # fmt: skip
     settle = state.settle
     if config.end_settled:
         settle = settle_update(settle, step, meas.qvel, meas.tcp_pos, coupled, config)

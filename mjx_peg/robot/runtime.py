@@ -49,7 +49,6 @@ from mjx_peg.skill.control_step import (
     make_skill,
     skill_torque,
     start_state,
-    tcp_height,
     wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
@@ -188,9 +187,10 @@ class SkillRuntime:
         a = cfg.coupling_pole
         self.coupled = a * self.coupled + (1.0 - a) * wrench
         wrench = self.coupled
-        height = tcp_height(self.skill, b(state.tcp_pos))
         dt = cfg.timestep * self.period_steps  # the command's period
-        self.aligned = aligned_rotation(self.control.search, self.aligned, wrench, height, dt)
+        self.aligned = aligned_rotation(self.control.search, self.aligned, wrench,
+                                        b(state.tcp_pos), self.skill.goal_pos,
+                                        self.skill.goal_rot, dt)  # fmt: skip
         meas = Measurement(
             t=np.array([self.elapsed(state)]),
             tcp_pos=b(state.tcp_pos),

@@ -125,12 +125,6 @@ def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, lever_world, g
     )
 
 
-def tcp_height(skill: Skill, tcp_pos):
-    """(...,) m: the tcp's height over its goal, along the goal's z (which points down)."""
-    xp = tcp_pos.__array_namespace__()
-    return -xp.sum(skill.goal_rot[..., :, 2] * (tcp_pos - skill.goal_pos), axis=-1)
-
-
 def task_state(skill: Skill, tcp_pos, tcp_rot, tcp_vel):
     """y, yd (..., 6) of the tcp in the goal frame; tcp_vel (..., 6) = [linear, angular], world."""
     return osc.task_state(
@@ -314,7 +308,6 @@ __all__ = [
     "skill_torque",
     "start_state",
     "task_state",
-    "tcp_height",
     "external_wrench",
     "wrench_in_goal_frame",
     "wrench_to_goal",

@@ -155,15 +155,19 @@ def searched_offset(config: SearchConfig, dy, wrench, rotation=None):
     return xp.concat([lateral, rest], axis=-1)
 
 
-def aligned_rotation(config: SearchConfig, rotation, wrench, height, dt: float):
+def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
+                     dt: float):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) and its yaw each bounded to a_max; from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
-    force through the gate g) and the tcp's height over the goal (...,) (h: below the hole's
-    estimated entrance by d_a). Zero rate: the rotation as it is."""
+    force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
+    (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a). Zero rate:
+    the rotation as it is, nothing computed."""
     if config.align_rate == 0.0:
         return rotation
     xp = namespace_of(rotation, wrench)
+    # the tcp's height over the goal, along the goal's z (which points down)
+    height = -xp.sum(goal_rot[..., :, 2] * (tcp_pos - goal_pos), axis=-1)
     g = resting_gate(config, wrench)[..., None]
     inside = (height < (HOLE_DEPTH - GOAL_HEIGHT - config.align_depth))[..., None]  # entrance
     step = (dt * config.align_rate) * g * wrench[..., 3:]

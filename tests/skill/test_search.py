@@ -63,6 +63,16 @@ def test_lateral_scale_and_press_bound():
     np.testing.assert_array_equal(np.delete(bounded, 2, axis=1), np.delete(ydd, 2, axis=1))
 
 
+def _over_goal(height):
+    """(tcp_pos, goal_pos, goal_rot): tcps `height` (...,) m over a tool-down goal at the origin
+    (the goal's z points down)."""
+    height = np.asarray(height, dtype=np.float64)
+    tcp = np.zeros((*height.shape, 3))
+    tcp[..., 2] = height
+    rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (*height.shape, 3, 3))
+    return tcp, np.zeros_like(tcp), rot
+
+
 def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     config = SearchConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
     wrench = _pressed_face(np.array([[0.01, -0.02]] * 4), np.array([40.0, 40.0, 15.0, 5.0]))
@@ -70,7 +80,7 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     m = wrench[:, 3:]
     inside = 0.08 - 0.011  # 11 mm below the estimated entrance, 80 mm over the goal
     height = np.array([inside, 0.08 - 0.009, inside, inside])
-    got = search.aligned_rotation(config, np.zeros((4, 3)), wrench, height, 0.002)
+    got = search.aligned_rotation(config, np.zeros((4, 3)), wrench, *_over_goal(height), 0.002)
     np.testing.assert_allclose(got[0], 0.002 * 2.0 * m[0], atol=1e-15)  # pressed, inside
     # 9 mm in: over the hole's edge, the tilt waits; the yaw does not
     np.testing.assert_allclose(got[1], [0.0, 0.0, 0.002 * 2.0 * 0.4], atol=1e-15)
@@ -78,7 +88,7 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     np.testing.assert_array_equal(got[3], 0.0)  # under f_on
     # it keeps what it found (an integral), the tilt and the yaw each within align_max
     start = np.array([[0.29, 0.0, 0.29]] * 4)
-    far = search.aligned_rotation(config, start, wrench, height, 1.0)
+    far = search.aligned_rotation(config, start, wrench, *_over_goal(height), 1.0)
     assert np.linalg.norm(far[0, :2]) == pytest.approx(0.3) and far[0, 2] == pytest.approx(0.3)
     np.testing.assert_array_equal(far[3], start[3])
     # the offset: the rotation adds to the goal's rotation, nothing else
@@ -89,7 +99,7 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     # zero rate: no rotation, whatever is carried
     off = search.searched_offset(SearchConfig(centre_gain=1.0), dy, np.zeros((4, 6)), far)
     np.testing.assert_array_equal(off, dy)
-    assert search.aligned_rotation(SearchConfig(), far, wrench, height, 1.0) is far
+    assert search.aligned_rotation(SearchConfig(), far, wrench, *_over_goal(height), 1.0) is far
 
 
 def test_the_paper_skill_is_the_default_and_changes_no_torque():
@@ -111,15 +121,17 @@ def test_numpy_and_jax_agree(x64):
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
     tilt, height = RNG.normal(0.0, 0.2, (8, 3)), RNG.uniform(0.05, 0.09, 8)
 
-    def both(dy, wrench, ydd, tilt, height):
+    def both(dy, wrench, ydd, tilt, goal):
         return (
             search.searched_offset(config, dy, wrench, tilt),
             search.bounded_press(config, ydd),
-            search.aligned_rotation(config, tilt, wrench, height, 0.002),
+            search.aligned_rotation(config, tilt, wrench, *goal, 0.002),
         )
 
-    expected = both(dy, wrench, ydd, tilt, height)
-    got = jax.jit(both)(*(jnp.asarray(a) for a in (dy, wrench, ydd, tilt, height)))
+    goal = _over_goal(height)
+    expected = both(dy, wrench, ydd, tilt, goal)
+    got = jax.jit(both)(*(jnp.asarray(a) for a in (dy, wrench, ydd, tilt)),
+                        tuple(jnp.asarray(a) for a in goal))  # fmt: skip
     for e, g in zip(expected, got, strict=True):
         np.testing.assert_allclose(np.asarray(g), e, rtol=1e-12, atol=1e-15)
 
