@@ -10,8 +10,8 @@ reading one physics step old):
 2. `advance`, for a trial that goes on: the F/T pipeline (`skill.sensor`) on the tared reading;
    the contact metrics (peak sensed force, the 150 N protective stop, the chatter ring of the
    true axial force); the compliance damping W_k = a_c W_(k-1) + (1 - a_c) F_k (Eq. 4 with
-   D_c = T_c K_c, `skill.control_step`); the search's goal rotation (`search.aligned_rotation`); the
-   settle test; the control step's joint torques.
+   D_c = T_c K_c, `skill.control_step`); the search's goal rotation (`search.aligned_rotation`)
+   and spiral (`search.spiral_state`); the settle test; the control step's joint torques.
 3. `result`: what an ended trial records (`TrialResult`'s fields).
 
 `period` is 1 then 2. Written over the array-API namespace of the inputs like `skill/`: the C
@@ -44,7 +44,7 @@ from mjx_peg.skill.control_step import (
     skill_torque,
     wrench_to_goal,
 )
-from mjx_peg.skill.search import aligned_rotation
+from mjx_peg.skill.search import aligned_rotation, spiral_state
 
 
 class TrialConsts(NamedTuple):
@@ -71,6 +71,7 @@ class TrialState(NamedTuple):
     axial: object  # (...,) N: the last period's true axial force
     settle: SettleState
     aligned: object  # (..., 3) rad: the goal's rotation found by the search's alignment
+    spiral: object  # (..., 3) the search's spiral: resting time, touchdown height, phase
 
 
 class PeriodMeasurement(NamedTuple):
@@ -135,6 +136,7 @@ def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
         axial=xp.zeros(batch, dtype=dtype),
         settle=settle_start(batch, xp),
         aligned=xp.zeros((*batch, 3), dtype=dtype),
+        spiral=xp.zeros((*batch, 3), dtype=dtype),
     )
 
 
@@ -197,6 +199,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     skill = consts.skill
     aligned = aligned_rotation(control.search, state.aligned, coupled, meas.tcp_pos,
                                skill.goal_pos, skill.goal_rot, config.timestep)  # fmt: skip
+    spiral = spiral_state(control.search, state.spiral, coupled, meas.tcp_pos, skill.goal_pos,
+                          skill.goal_rot, config.timestep)  # fmt: skip
     settle = state.settle
     if config.end_settled:
         settle = settle_update(settle, step, meas.qvel, meas.tcp_pos, coupled, config)
@@ -215,10 +219,12 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
             bias=meas.bias,
             wrench=coupled,
             aligned=aligned,
+            spiral=spiral,
         ),
     )
     torques = xp.where(xp.isfinite(torques), torques, 0.0)
-    new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle, aligned)
+    new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle, aligned,
+                     spiral)  # fmt: skip
     return new, torques, coupled
 
 

@@ -52,7 +52,7 @@ from mjx_peg.skill.control_step import (
     wrench_to_goal,
 )
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.search import aligned_rotation
+from mjx_peg.skill.search import aligned_rotation, spiral_state
 from mjx_peg.world import constants
 from mjx_peg.world.task import goal_pose
 
@@ -130,6 +130,7 @@ class SkillRuntime:
         self.filtered = np.zeros((1, 6))
         self.coupled = np.zeros((1, 6))
         self.aligned = np.zeros((1, 3))  # the goal's rotation the search's alignment found (rad)
+        self.spiral = np.zeros((1, 3))  # the search's spiral state (search.spiral_state)
         self.tool_force = self.peak_force = 0.0  # N: the last and the largest sensed force
         self.settle = settle_start((1,))
         self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
@@ -140,7 +141,8 @@ class SkillRuntime:
         self.tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
         self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
-        self.filtered[:], self.coupled[:], self.aligned[:], self.tool_force = 0.0, 0.0, 0.0, 0.0
+        self.filtered[:], self.coupled[:], self.aligned[:], self.spiral[:] = 0.0, 0.0, 0.0, 0.0
+        self.tool_force = 0.0
         self.peak_force = 0.0
         self.t0 = self.last_t = state.t
 
@@ -191,6 +193,8 @@ class SkillRuntime:
         self.aligned = aligned_rotation(self.control.search, self.aligned, wrench,
                                         b(state.tcp_pos), self.skill.goal_pos,
                                         self.skill.goal_rot, dt)  # fmt: skip
+        self.spiral = spiral_state(self.control.search, self.spiral, wrench, b(state.tcp_pos),
+                                   self.skill.goal_pos, self.skill.goal_rot, dt)  # fmt: skip
         meas = Measurement(
             t=np.array([self.elapsed(state)]),
             tcp_pos=b(state.tcp_pos),
@@ -202,6 +206,7 @@ class SkillRuntime:
             bias=b(state.bias),
             wrench=wrench,
             aligned=self.aligned,
+            spiral=self.spiral,
         )
         u = skill_torque(self.control, self.skill, self.basis, meas)[0]
         if not np.all(np.isfinite(u)):

@@ -149,6 +149,9 @@ class Measurement(NamedTuple):
     # (..., 3) the goal's rotation the contact search's alignment has found
     # (`search.aligned_rotation`, carried by the caller); None: none
     aligned: object = None
+    # (..., 3) the contact search's spiral state (`search.spiral_state`, carried by the caller);
+    # None: none
+    spiral: object = None
 
 
 class ControlConfig(NamedTuple):
@@ -198,7 +201,7 @@ def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measur
     wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
     dy = dmp.compliance_offset(skill.compliance, wrench)
     if config.search.active:
-        dy = searched_offset(config.search, dy, wrench, meas.aligned)
+        dy = searched_offset(config.search, dy, wrench, meas.aligned, meas.spiral)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)

@@ -4,7 +4,7 @@ tilted or turned hole (an extension).
 The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10).
 A peg that lands on the rim stays there: static friction holds its tip until the lateral
 tracking force passes mu N, i.e. until a lateral goal offset s passes mu N (1 / K_e + C_xx)
-(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Four
+(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Five
 elements, each off by default, change that while the peg rests on something. In the goal
 frame (the tool's orientation at the goal: z points down, into the hole):
 
@@ -16,6 +16,10 @@ frame (the tool's orientation at the goal: z points down, into the hole):
     alignment   a_k = a_(k-1) + T k_a g (h m_x, h m_y, m_z),  |a_xy|, |a_z| <= a_max
                 dy_rot <- dy_rot + a;  h = 1 once the tcp is d_a below the hole's estimated
                 entrance
+    spiral      dy_xy <- dy_xy + s(tau), s an Archimedean spiral about the hole's estimated
+                axis (`spiral_path`), tau the time the peg has rested (`spiral_state`); while
+                it runs (sigma): dy_z <- (1 + sigma (kappa - 1)) dy_z, c_lat -> c_s, k_cop ->
+                k_cop (1 + sigma (k_s - 1))
 
 The centring is the paper's moment-to-shift coupling (C[0,4], C[1,3]) divided by the axial
 force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from
@@ -42,6 +46,21 @@ press: a polygon enters only once it is turned. Measured (docs/tilted_hole.md): 
 at +-2 mm / +-12 deg, 58.3 % -> 83.3 % (the tilt alone 71.7 %), the median time 7.6 s -> 3.8 s,
 no peg left wedged of 14; on the 500 trials at +-4 mm / +-6 deg, 83.0 % -> 84.6 % and the time
 p90 18.4 s -> 8.3 s. `SKILLS["align"]` is the centring and the alignment.
+
+The spiral frees the pegs that the centring cannot: beyond d* = sqrt(R_h^2 - R_p^2) (6.2 mm at
+50 mm) a peg rests on a chord of its face on the hole's side, and the centre of pressure no
+longer points away from the hole (docs/rim_escape.md), so the centring walks it away, to ~30 mm.
+After t_w (1 s) of resting, the goal runs an Archimedean spiral (pitch p = 10 mm, under the
+capture width 2 d*; out to R = 25 mm, past the 8 mm of localization error and the tip's drift;
+v = 20 mm/s round its turns) about the hole's estimated axis, and the friction threshold falls
+below the spiral's own amplitude: the press halves (kappa = 2, ~20 N), the tip follows the goal
+at the arm's own stiffness (c_s = 0: 1.7 mm of lag at mu 0.5), and the centring keeps a quarter
+of its gain (k_s = 0.25), enough to pull in a peg within d*. The spiral stops as soon as the tcp
+drops e = 1.5 mm below its resting height (a height that follows the tcp down over T_h = 1 s,
+so a tilted board does not stop it): the peg has found the hole. Measured (docs/rim_escape.md):
+of the 51 trials that `policies/paper` with the alignment fails on the 500 trials, the spiral
+inserts 42 within 30 s and loses none of 20 of its successes. `SKILLS["spiral"]` is the
+alignment and the spiral.
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
@@ -70,15 +89,35 @@ class SearchConfig:
     align_rate: float = 0.0  # k_a, rad/(N m s): how fast the goal's rotation follows the moment
     align_max: float = 0.35  # rad: a_max, the largest tilt and the largest yaw (20 deg)
     align_depth: float = 0.02  # m: d_a, the tcp's depth below the estimated entrance
+    spiral_speed: float = 0.0  # m/s: v, the spiral's speed along its path; 0: no spiral
+    spiral_pitch: float = 0.01  # m: p, the spiral's pitch, its radius's growth per turn
+    spiral_radius: float = 0.025  # m: R, its largest radius (then it circles at R)
+    spiral_wait: float = 1.0  # s: t_w, the resting time before it starts
+    spiral_ramp: float = 1.0  # s: T_r, the time its phase sigma takes to switch on or off
+    spiral_axial: float = 2.0  # kappa: axial compliance while spiralling, times C_zz
+    spiral_lateral: float = 0.0  # c_s: lateral compliance while spiralling, times C_xx, C_yy
+    spiral_centre: float = 0.25  # the centring's gain while spiralling, times k_cop
+    entry_depth: float = 0.0015  # m: e, the tcp's fall below its resting height that ends it
+    entry_follow: float = 1.0  # s: T_h, how slowly the resting height follows the tcp down
 
     def __post_init__(self):
-        for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_depth"):
+        for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_depth",
+                     "spiral_speed", "spiral_wait", "spiral_centre", "entry_depth"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise UsageError(f"SearchConfig.{name} must be a number >= 0, got {value!r}")
         if not (math.isfinite(self.lateral_scale) and 0 <= self.lateral_scale <= 1):
             raise UsageError(
                 f"SearchConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
+            )
+        for name in ("spiral_pitch", "spiral_radius", "spiral_ramp", "spiral_axial",
+                     "entry_follow"):  # fmt: skip
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise UsageError(f"SearchConfig.{name} must be a number > 0, got {value!r}")
+        if not (math.isfinite(self.spiral_lateral) and 0 <= self.spiral_lateral <= 1):
+            raise UsageError(
+                f"SearchConfig.spiral_lateral must be in [0, 1], got {self.spiral_lateral!r}"
             )
         if not (0 <= self.force_on < self.force_full < math.inf):
             raise UsageError(
@@ -94,6 +133,7 @@ class SearchConfig:
             or self.lateral_scale < 1
             or self.centre_gain > 0
             or self.align_rate > 0
+            or self.spiral_speed > 0
         )
 
     def replace(self, **changes) -> SearchConfig:
@@ -105,6 +145,7 @@ SKILLS = {
     "paper": SearchConfig(),
     "search": SearchConfig(centre_gain=1.0),
     "align": SearchConfig(centre_gain=1.0, align_rate=1.0),
+    "spiral": SearchConfig(centre_gain=1.0, align_rate=1.0, spiral_speed=0.02),
 }
 
 
@@ -114,6 +155,8 @@ SKILL_DESCRIPTIONS = {
     "resting on the board top, skill/search.py",
     "align": "the contact search, and the goal's rotation following the moment (an integral "
     "rotational compliance; its tilt once the peg is in the hole), skill/search.py",
+    "spiral": "the alignment, and a spiral of the goal about the estimated hole while the peg "
+    "rests on the board top, its press lighter and its tip stiffer, skill/search.py",
 }
 
 
@@ -140,19 +183,35 @@ def centre_of_pressure(wrench, min_force: float):
     return xp.stack([wrench[..., 4], -wrench[..., 3]], axis=-1) / n[..., None]
 
 
-def searched_offset(config: SearchConfig, dy, wrench, rotation=None):
-    """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring and alignment
-    elements applied, from the wrench (..., 6) the compliance sees and the goal's rotation
-    (..., 3) the alignment found (`aligned_rotation`; None: none)."""
+def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None):
+    """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment and
+    spiral elements applied, from the wrench (..., 6) the compliance sees, the goal's rotation
+    (..., 3) the alignment found (`aligned_rotation`) and the spiral's state (..., 3)
+    (`spiral_state`); None: none."""
     xp = namespace_of(dy, wrench)
     g = resting_gate(config, wrench)[..., None]
-    lateral = dy[..., :2] * (1.0 - g * (1.0 - config.lateral_scale))
+    c_lat, k_cop, axial = config.lateral_scale, config.centre_gain, dy[..., 2:3]
+    spiralling = config.spiral_speed > 0 and spiral is not None
+    if spiralling:  # sigma blends each element to its spiralling value
+        sigma = spiral[..., 2:3]
+        c_lat = c_lat + sigma * (config.spiral_lateral - c_lat)
+        k_cop = k_cop * (1.0 + sigma * (config.spiral_centre - 1.0))
+        axial = axial * (1.0 + sigma * (config.spiral_axial - 1.0))
+    lateral = dy[..., :2] * (1.0 - g * (1.0 - c_lat))
     if config.centre_gain > 0:
-        lateral = lateral - config.centre_gain * g * centre_of_pressure(wrench, config.force_full)
-    rest = dy[..., 2:]
+        lateral = lateral - k_cop * g * centre_of_pressure(wrench, config.force_full)
+    if spiralling:
+        lateral = lateral + spiral_path(config, spiral[..., 0])
+    turn = dy[..., 3:]
     if config.align_rate > 0 and rotation is not None:
-        rest = xp.concat([dy[..., 2:3], dy[..., 3:] + rotation], axis=-1)
-    return xp.concat([lateral, rest], axis=-1)
+        turn = turn + rotation
+    return xp.concat([lateral, axial, turn], axis=-1)
+
+
+def _height_over_goal(tcp_pos, goal_pos, goal_rot):
+    """(...,) m: the tcp's height over the goal, along the goal's z (which points down)."""
+    xp = namespace_of(tcp_pos)
+    return -xp.sum(goal_rot[..., :, 2] * (tcp_pos - goal_pos), axis=-1)
 
 
 def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
@@ -166,8 +225,7 @@ def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, 
     if config.align_rate == 0.0:
         return rotation
     xp = namespace_of(rotation, wrench)
-    # the tcp's height over the goal, along the goal's z (which points down)
-    height = -xp.sum(goal_rot[..., :, 2] * (tcp_pos - goal_pos), axis=-1)
+    height = _height_over_goal(tcp_pos, goal_pos, goal_rot)
     g = resting_gate(config, wrench)[..., None]
     inside = (height < (HOLE_DEPTH - GOAL_HEIGHT - config.align_depth))[..., None]  # entrance
     step = (dt * config.align_rate) * g * wrench[..., 3:]
@@ -176,6 +234,57 @@ def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, 
     tilt = tilt * xp.minimum(1.0, config.align_max / xp.maximum(norm, 1e-12))
     yaw = xp.clip(rotation[..., 2:] + step[..., 2:], -config.align_max, config.align_max)
     return xp.concat([tilt, yaw], axis=-1)
+
+
+def spiral_state(config: SearchConfig, spiral, wrench, tcp_pos, goal_pos, goal_rot, dt: float):
+    """(..., 3) the spiral's state (tau, h_r, sigma) after one period of dt seconds, from the
+    state before (zeros at the start), the wrench (..., 6) the compliance sees (its axial force
+    through the gate g) and the tcp's position (..., 3) against the goal's pose (..., 3),
+    (..., 3, 3) (world frame), with h the tcp's height over the goal:
+
+        h_r    the resting height: h at the first firm press (g > 1/2; 0 before: the goal lies
+               80 mm below the hole's entrance, so a touching tcp is never at 0), then
+               max(h, h_r + dt (h - h_r) / T_h): it follows the tcp up at once and down over
+               T_h, so a peg sliding down a tilted board (~0.5 mm/s) keeps resting and a peg
+               dropping into the hole (millimetres in a few tenths of a second) does not
+        rest   the peg rests: pressed once, and h not e below h_r (checked before h_r moves)
+        tau    += dt g while it rests: the resting time, which runs the spiral (`spiral_path`);
+               it stops while the peg drops in, so the goal keeps the offset that found the hole
+        sigma  the spiralling phase in [0, 1]: towards 1 at dt / T_r a period while it rests
+               past t_w, else towards 0 (a ramp: the lighter press lifts the goal by
+               (kappa - 1) C_zz N, ~40 mm, so a switch at once would lift the peg off)
+
+    Zero speed: the state as it is, nothing computed."""
+    if config.spiral_speed == 0.0:
+        return spiral
+    xp = namespace_of(spiral, wrench)
+    height = _height_over_goal(tcp_pos, goal_pos, goal_rot)
+    g = resting_gate(config, wrench)
+    tau, h_r, sigma = spiral[..., 0], spiral[..., 1], spiral[..., 2]
+    h_r = xp.where((h_r == 0.0) & (g > 0.5), height, h_r)
+    touched = h_r != 0.0
+    resting = touched & (height > h_r - config.entry_depth)
+    h_r = xp.where(touched, xp.maximum(height, h_r + (dt / config.entry_follow) * (height - h_r)),
+                   0.0)  # fmt: skip
+    tau = tau + dt * xp.where(resting, g, 0.0)
+    towards = xp.where(resting & (tau > config.spiral_wait), 1.0, -1.0)
+    sigma = xp.clip(sigma + (dt / config.spiral_ramp) * towards, 0.0, 1.0)
+    return xp.stack([tau, h_r, sigma], axis=-1)
+
+
+def spiral_path(config: SearchConfig, tau):
+    """(..., 2) the spiral's goal offset s (goal frame x, y; m) after a resting time tau (...,):
+    an Archimedean spiral about the hole's estimated axis, r = p phi / (2 pi), run round its
+    turns at the speed v (r dphi/dt = v) from t_w on, so that r = sqrt(p v t / pi) and
+    phi = 2 pi r / p at t = tau - t_w; from r = R on it circles at R."""
+    xp = namespace_of(tau)
+    p, v, big_r = config.spiral_pitch, config.spiral_speed, config.spiral_radius
+    t = xp.maximum(tau - config.spiral_wait, 0.0)
+    t_full = math.pi * big_r**2 / (p * v)  # when r reaches R
+    r = xp.minimum(xp.sqrt(p * v * t / math.pi), big_r)
+    phi = xp.where(t < t_full, 2.0 * math.pi * r / p,
+                   2.0 * math.pi * big_r / p + v * (t - t_full) / big_r)  # fmt: skip
+    return xp.stack([r * xp.cos(phi), r * xp.sin(phi)], axis=-1)
 
 
 def bounded_press(config: SearchConfig, ydd):
@@ -196,4 +305,6 @@ __all__ = [
     "resting_gate",
     "searched_offset",
     "skill_search",
+    "spiral_path",
+    "spiral_state",
 ]

@@ -91,6 +91,34 @@ def test_simulated_arm_runs_the_engines_alignment():
         assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
 
 
+def test_simulated_arm_runs_the_engines_spiral():
+    """The spiral's state is carried by the runtime as by the engine: two pegs that the shipped
+    `paper` policy leaves on the rim with the alignment alone (the 500 trials of
+    experiments/contact.py, +-4 mm / +-6 deg, seed 1) insert with the spiral, with the same
+    outcomes, times and commands on the simulated arm."""
+    from mjx_peg.skill.search import skill_search
+
+    task = TaskConfig(shapes=("circle", "square"), sizes=(0.05,), linear_error=0.004,
+                      angular_error=np.deg2rad(6.0))  # fmt: skip
+    specs = sample_trials(task, 1, 500).take([155, 489])
+    vectors = load_policy("paper").controller_vectors(specs)
+    runs = {
+        name: cpu_engine.run_trials(
+            specs, as_controller_params(vectors, len(specs)), workers=1,
+            config=TrialConfig(time_limit_s=8.0, search=skill_search(name)),
+        )
+        for name in ("align", "spiral")
+    }  # fmt: skip
+    assert not runs["align"].success.any() and runs["spiral"].success.all()
+    config = TrialConfig(time_limit_s=8.0, search=skill_search("spiral"))
+    for i in range(len(specs)):
+        arm = SimArm(specs, i)
+        run = run_skill(arm, SkillRuntime(vectors[i], HoleEstimate.of_trial(specs, i), config),
+                        done=arm.inserted)  # fmt: skip
+        assert run.success and run.commands == runs["spiral"].steps[i]
+        assert run.time_s == pytest.approx(runs["spiral"].time_s[i], abs=1e-9)
+
+
 def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     """A failure that settles (almost no translational stiffness: the arm hovers at rest, the
     wrench it senses steady) stops the runtime with "settled" at the control period at which the

@@ -90,7 +90,7 @@ def test_at_rest_on_the_goal_the_torque_is_the_bias():
     np.testing.assert_allclose(u, args["bias"], atol=1e-9)
 
 
-@pytest.mark.parametrize("skill_name", ["paper", "search", "align"])
+@pytest.mark.parametrize("skill_name", ["paper", "search", "align", "spiral"])
 def test_numpy_and_jax_agree(x64, skill_name):
     import jax
     import jax.numpy as jnp
@@ -100,8 +100,11 @@ def test_numpy_and_jax_agree(x64, skill_name):
     trial = TrialConfig(search=skill_search(skill_name))
     if skill_name != "paper":  # half the rows pressed firmly enough to open the gate
         args["wrench"][::2, 2] = -rng.uniform(10.0, 40.0, 8)
-    if skill_name == "align":  # the goal turned by what the alignment found
+    if skill_name in ("align", "spiral"):  # the goal turned by what the alignment found
         args["aligned"] = rng.normal(0.0, 0.1, (16, 3))
+    if skill_name == "spiral":  # and moved along the spiral, its press lighter
+        args["spiral"] = np.stack([rng.uniform(0.0, 20.0, 16), np.full(16, 0.08),
+                                   rng.uniform(0.0, 1.0, 16)], axis=-1)  # fmt: skip
     basis = fitted_basis(TrialConfig().dmp)
     u_np = _torque(skill, basis, args, trial=trial)
     if skill_name == "search":  # the pressed rows' goals moved (some torques are clamped)
