@@ -2,7 +2,7 @@
 
     python experiments/contact.py [--policy baseline|RUN_DIR] [--sensor VARIANT] [--trials 500]
         [--time-limit 60] [--seed 1] [--first] [--full-time-limit] [--threads N]
-        [--processes N] [--csv FILE]
+        [--processes N] [--indices FILE] [--csv FILE]
 
 The set: circle + square 50 mm (`--shapes`), +-4 mm / +-6 deg, `sample_trials(seed)`, on the C
 engine with the default TrialConfig (failures that have settled end early unless
@@ -11,7 +11,8 @@ peak sensed force, chatter), the time to insert, the physics steps per second an
 taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the
 first hand-tuned baseline instead of the current one; `--policy RUN_DIR`: a trained policy.
 `--sensor` changes one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F`
-gives every trial the friction F. `--csv`: one row per trial, for paired comparisons
+gives every trial the friction F. `--indices FILE`: only those of the trials (one index per
+line; the CSV keeps their indices). `--csv`: one row per trial, for paired comparisons
 (`experiments/contact_table.py`).
 """
 
@@ -64,17 +65,18 @@ def sensor_variant(name: str) -> SensorConfig:
 SENSOR_VARIANTS = ("nominal", "nofilter", "cutoff0.5", "cutoff2", "delay+2", "noise2")
 
 
-def write_csv(path: str, result, specs) -> None:
-    """One row per trial; where the peg tip ended: its depth below the board top (mm) and its
-    distance from the hole axis (mm)."""
+def write_csv(path: str, result, specs, indices=None) -> None:
+    """One row per trial (`indices`: their numbers, default 0..); where the peg tip ended: its
+    depth below the board top (mm) and its distance from the hole axis (mm)."""
     columns = ("success", "time_s", "peak_force", "chatter", "protective_stop", "settled",
                "unstable", "steps")  # fmt: skip
     depth = (HOLE_DEPTH - result.final_tip_pos[:, 2]) * 1000
     off_axis = np.linalg.norm(result.final_tip_pos[:, :2] - specs.board_pos, axis=1) * 1000
     rows = [",".join(("trial",) + columns + ("tip_depth_mm", "tip_off_axis_mm"))]
-    for k in range(len(result)):
+    indices = range(len(result)) if indices is None else indices
+    for k, index in enumerate(indices):
         values = [getattr(result, c)[k] for c in columns] + [depth[k], off_axis[k]]
-        rows.append(",".join([str(k)] + [f"{float(v):.6g}" for v in values]))
+        rows.append(",".join([str(index)] + [f"{float(v):.6g}" for v in values]))
     with open(path, "w") as f:
         f.write("\n".join(rows) + "\n")
 
@@ -104,6 +106,7 @@ def main(argv=None) -> None:
     p.add_argument("--sensor", default="nominal", choices=SENSOR_VARIANTS)
     p.add_argument("--friction", type=float, help="every trial's friction (default: drawn)")
     p.add_argument("--csv", help="write one row per trial here")
+    p.add_argument("--indices", help="a file of trial indices (one per line): only those trials")
     p.add_argument("--shapes", default="circle,square", help="comma-separated (50 mm each)")
     p.add_argument("--linear-mm", type=float, default=4.0, help="localization error range, +-mm")
     p.add_argument("--angular-deg", type=float, default=6.0, help="grasp tilt range, +-deg")
@@ -144,6 +147,12 @@ def main(argv=None) -> None:
                       grasp_model=args.grasp_model)  # fmt: skip
     force_deadband, moment_deadband = (float(v) for v in args.deadband.split(","))
     specs = sample_trials(task, args.seed, args.trials)
+    indices = None
+    if args.indices:
+        indices = np.loadtxt(args.indices, dtype=np.int64, ndmin=1)
+        if indices.size == 0 or indices.min() < 0 or indices.max() >= args.trials:
+            raise SystemExit(f"--indices: indices in 0..{args.trials - 1}, one per line")
+        specs = specs.take(indices)
     if args.friction is not None:  # the same trials, one friction
         specs = dataclasses.replace(specs, friction=np.full(len(specs), args.friction))
     if args.policy != "baseline":
@@ -171,7 +180,8 @@ def main(argv=None) -> None:
         f"{label}, skill {args.skill} {search}, sensor {args.sensor}, "
         f"{'friction ' + format(args.friction, 'g') + ', ' if args.friction is not None else ''}"
         f"{args.shapes} 50 mm, +-{args.linear_mm:g} mm / +-{args.angular_deg:g} deg, "
-        f"{args.trials} trials, seed "
+        f"{len(specs) if indices is not None else args.trials} trials"
+        f"{' of ' + str(args.trials) if indices is not None else ''}, seed "
         f"{args.seed}, {args.time_limit:g} s"
         f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"
     )
@@ -180,7 +190,7 @@ def main(argv=None) -> None:
     rows = taxonomy.table(specs, result.to_arrays(), config.time_limit_s, config.timestep)
     print(taxonomy.markdown(rows, len(specs)), end="")
     if args.csv:
-        write_csv(args.csv, result, specs)
+        write_csv(args.csv, result, specs, indices)
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
     assert "3 trials" in out and "physics steps" in out
     out = run_script("experiments/contact.py", *tiny, "--sensor", "nofilter", "--friction", 0.2,
                      "--policy", "quick", "--csv", nofilter)  # fmt: skip
-    assert "policy quick, skill search" in out and "friction 0.2," in out  # the policy's skill
+    assert "policy quick, skill spiral" in out and "friction 0.2," in out  # the policy's skill
     with open(nominal) as f:
         rows = list(csv.DictReader(f))
     assert [int(r["trial"]) for r in rows] == [0, 1, 2]
@@ -52,6 +52,17 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
     assert len(lines) == 4 and lines[0].startswith("| run | success")
     assert lines[2].startswith("| nominal | 0.0 % (0 / 3)") and "0 lost, 0 gained" in lines[2]
     assert lines[3].startswith("| nofilter |")
+    # --indices: those trials only, the CSV keeping their numbers
+    (tmp_path / "indices.txt").write_text("2\n0\n")
+    some = tmp_path / "some.csv"
+    out = run_script("experiments/contact.py", *tiny, "--indices", tmp_path / "indices.txt",
+                     "--csv", some)  # fmt: skip
+    assert "2 trials of 3" in out
+    with open(some) as f:
+        picked = list(csv.DictReader(f))
+    assert [int(r["trial"]) for r in picked] == [2, 0]
+    assert [r["tip_off_axis_mm"] for r in picked] == [rows[2]["tip_off_axis_mm"],
+                                                      rows[0]["tip_off_axis_mm"]]  # fmt: skip
 
 
 def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):

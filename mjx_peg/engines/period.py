@@ -71,7 +71,7 @@ class TrialState(NamedTuple):
     axial: object  # (...,) N: the last period's true axial force
     settle: SettleState
     aligned: object  # (..., 3) rad: the goal's rotation found by the search's alignment
-    spiral: object  # (..., 3) the search's spiral: resting time, touchdown height, phase
+    spiral: object  # (..., 3) the search's spiral: resting time, resting height, phase
 
 
 class PeriodMeasurement(NamedTuple):

@@ -79,7 +79,7 @@ def parser() -> argparse.ArgumentParser:
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
-    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (search)")
+    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",

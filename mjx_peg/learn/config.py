@@ -1,9 +1,9 @@
 """Training configuration: `TrainConfig`, the presets, and their JSON form in a run directory.
 
-Presets (`python train.py --preset NAME`), each with the contact search (`--skill search`, an
-extension; `--skill paper` trains the paper's skill as written):
+Presets (`python train.py --preset NAME`), each with the spiral contact search (`--skill spiral`,
+an extension, skill/search.py; `--skill paper` trains the paper's skill as written):
 - `quick` (default): circle + square at 50 mm, errors +-4 mm / +-6 deg, a 20 s trial limit,
-  3,584 trials; ~9 min on a 2-core CPU.
+  3,584 trials; ~8 min on a 2-core CPU.
 - `paper`: the paper's training conditions (section 5.2): circle + square at 50 mm, errors up to
   +-8 mm / +-12 deg, friction 0.2-0.9; 8,192 trials (the paper's curve levels off after ~8,000).
 - `transfer`: re-train a finished run (`--init-from RUN_DIR`) on the unseen triangle, same
@@ -178,17 +178,17 @@ class TrainConfig:
 PRESETS: dict[str, TrainConfig] = {
     # 3,584 trials (14 iterations): python train.py in under 10 minutes on 2 cores (9.9 min for
     # 4,096 with other work beside it; README "Training")
-    "quick": TrainConfig(trials=3584, skill="search"),
+    "quick": TrainConfig(trials=3584, skill="spiral"),
     "paper": TrainConfig(
         preset="paper",
         linear_mm=8.0,
         angular_deg=12.0,
         trials=8192,
-        skill="search",
+        skill="spiral",
     ),
     "transfer": TrainConfig(
         preset="transfer",
-        skill="search",
+        skill="spiral",
         shapes=("triangle",),
         linear_mm=8.0,
         angular_deg=12.0,

@@ -89,7 +89,7 @@ class SearchConfig:
     align_rate: float = 0.0  # k_a, rad/(N m s): how fast the goal's rotation follows the moment
     align_max: float = 0.35  # rad: a_max, the largest tilt and the largest yaw (20 deg)
     align_depth: float = 0.02  # m: d_a, the tcp's depth below the estimated entrance
-    spiral_speed: float = 0.0  # m/s: v, the spiral's speed along its path; 0: no spiral
+    spiral_speed: float = 0.0  # m/s: v, the spiral's speed round its turns; 0: no spiral
     spiral_pitch: float = 0.01  # m: p, the spiral's pitch, its radius's growth per turn
     spiral_radius: float = 0.025  # m: R, its largest radius (then it circles at R)
     spiral_wait: float = 1.0  # s: t_w, the resting time before it starts
