@@ -4,15 +4,15 @@
         [--time-limit 60] [--seed 1] [--first] [--full-time-limit] [--threads N]
         [--processes N] [--indices FILE] [--csv FILE]
 
-The set: circle + square 50 mm (`--shapes`), +-4 mm / +-6 deg, `sample_trials(seed)`, on the C
-engine with the default TrialConfig (failures that have settled end early unless
---full-time-limit). Prints the outcome summary (success, protective stops, settled failures,
-peak sensed force, chatter), the time to insert, the physics steps per second and the failure
-taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the
-first hand-tuned baseline instead of the current one; `--policy RUN_DIR`: a trained policy.
-`--sensor` changes one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F`
-gives every trial the friction F. `--indices FILE`: only those of the trials (one index per
-line; the CSV keeps their indices). `--csv`: one row per trial, for paired comparisons
+The set: circle + square 50 mm (`--shapes`, `--size-mm`), +-4 mm / +-6 deg,
+`sample_trials(seed)`, on the C engine with the default TrialConfig (failures that have settled
+end early unless --full-time-limit). Prints the outcome summary (success, protective stops,
+settled failures, peak sensed force, chatter), the time to insert, the physics steps per second
+and the failure taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the first hand-tuned
+baseline instead of the current one; `--policy RUN_DIR`: a trained policy. `--sensor` changes
+one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F` gives every trial
+the friction F. `--indices FILE`: only those of the trials (one index per line; the CSV keeps
+their indices). `--csv`: one row per trial, for paired comparisons
 (`experiments/contact_table.py`).
 """
 
@@ -107,7 +107,8 @@ def main(argv=None) -> None:
     p.add_argument("--friction", type=float, help="every trial's friction (default: drawn)")
     p.add_argument("--csv", help="write one row per trial here")
     p.add_argument("--indices", help="a file of trial indices (one per line): only those trials")
-    p.add_argument("--shapes", default="circle,square", help="comma-separated (50 mm each)")
+    p.add_argument("--shapes", default="circle,square", help="comma-separated")
+    p.add_argument("--size-mm", type=float, default=50.0, help="the pegs' size S (mm)")
     p.add_argument("--linear-mm", type=float, default=4.0, help="localization error range, +-mm")
     p.add_argument("--angular-deg", type=float, default=6.0, help="grasp tilt range, +-deg")
     p.add_argument(
@@ -141,7 +142,7 @@ def main(argv=None) -> None:
     search = skill_search(args.skill).replace(**{
         k.strip(): float(v) for k, v in (item.split("=") for item in args.search.split(";") if item)
     })  # fmt: skip
-    task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(0.05,),
+    task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(args.size_mm / 1000,),
                       linear_error=args.linear_mm / 1000,
                       angular_error=math.radians(args.angular_deg),
                       grasp_model=args.grasp_model)  # fmt: skip
@@ -179,7 +180,7 @@ def main(argv=None) -> None:
     print(
         f"{label}, skill {args.skill} {search}, sensor {args.sensor}, "
         f"{'friction ' + format(args.friction, 'g') + ', ' if args.friction is not None else ''}"
-        f"{args.shapes} 50 mm, +-{args.linear_mm:g} mm / +-{args.angular_deg:g} deg, "
+        f"{args.shapes} {args.size_mm:g} mm, +-{args.linear_mm:g} mm / +-{args.angular_deg:g} deg, "
         f"{len(specs) if indices is not None else args.trials} trials"
         f"{' of ' + str(args.trials) if indices is not None else ''}, seed "
         f"{args.seed}, {args.time_limit:g} s"
