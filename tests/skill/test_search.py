@@ -180,6 +180,8 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert not search.skill_search("paper").active and not TrialConfig().search.active
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
+    spiral = search.skill_search("align").replace(spiral_speed=0.02)
+    assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
 
 
