@@ -180,13 +180,16 @@ class SkillRuntime:
             raise RuntimeError("SkillRuntime.torque before start")
         cfg, b = self.config, lambda a: a[None]  # one trial as a batch of one
         reading = external_wrench(b(state.force), b(state.torque), self.tare)
-        self.filtered = sensor.filter_step(self.filtered, reading, self.alpha)
+        # The filter and the damping are first-order lags with poles for one physics step
+        # (TrialConfig.timestep); a command every n steps holds its reading n steps: pole^n.
+        n = self.period_steps
+        self.filtered = sensor.filter_step(self.filtered, reading, self.alpha**n)
         self.tool_force = float(np.linalg.norm(self.filtered[0, :3]))
         self.peak_force = max(self.peak_force, self.tool_force)
         wrench = wrench_to_goal(
             self.filtered, b(state.ft_rot), b(state.ft_pos - state.tcp_pos), self.goal_rot
         )
-        a = cfg.coupling_pole
+        a = cfg.coupling_pole**n
         self.coupled = a * self.coupled + (1.0 - a) * wrench
         wrench = self.coupled
         dt = cfg.timestep * self.period_steps  # the command's period
