@@ -181,8 +181,7 @@ def main(argv=None) -> None:
         f"{label}, skill {args.skill} {search}, sensor {args.sensor}, "
         f"{'friction ' + format(args.friction, 'g') + ', ' if args.friction is not None else ''}"
         f"{args.shapes} {args.size_mm:g} mm, +-{args.linear_mm:g} mm / +-{args.angular_deg:g} deg, "
-        f"{len(specs) if indices is not None else args.trials} trials"
-        f"{' of ' + str(args.trials) if indices is not None else ''}, seed "
+        f"{len(specs)} trials{' of ' + str(args.trials) if indices is not None else ''}, seed "
         f"{args.seed}, {args.time_limit:g} s"
         f"{', every failure to the limit' if args.full_time_limit else ''}: {result.summary()}"
     )
