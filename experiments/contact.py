@@ -93,6 +93,13 @@ def changed(vector: np.ndarray, text: str) -> np.ndarray:
     return out
 
 
+def search_config(skill: str, changes: str):
+    """The SearchConfig of `skill` with the constants of 'NAME=V;...' changed."""
+    return skill_search(skill).replace(**{
+        k.strip(): float(v) for k, v in (item.split("=") for item in changes.split(";") if item)
+    })  # fmt: skip
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=500)
@@ -139,9 +146,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
     args.skill = args.skill or policy_skill(policy)
-    search = skill_search(args.skill).replace(**{
-        k.strip(): float(v) for k, v in (item.split("=") for item in args.search.split(";") if item)
-    })  # fmt: skip
+    search = search_config(args.skill, args.search)
     task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(args.size_mm / 1000,),
                       linear_error=args.linear_mm / 1000,
                       angular_error=math.radians(args.angular_deg),

@@ -161,3 +161,13 @@ def test_failures_classifies_each_failed_trial(tmp_path):
     with np.load(out) as saved:
         assert saved["square/result/final_tip_pos"].shape == (3, 3)
         assert saved["square/spec/board_tilt"].shape == (3, 2)
+
+
+def test_grid_subset_runs_an_evaluations_own_trials_per_quarter(tmp_path):
+    out = run_script("experiments/grid_subset.py", "--per-shape", 1, "--time-limit", 0.3,
+                     "--threads", 1, "--npz", tmp_path / "s.npz")  # fmt: skip
+    assert "200 trials of docs/eval/paper_spiral_50mm_small_board" in out
+    assert all(f"Q{q} " in out for q in range(1, 5))
+    saved = np.load(tmp_path / "s.npz")
+    assert saved["range"].tolist() == [r for r in range(100) for _ in range(2)]
+    assert not saved["success"].any()  # 0.3 s: still above the board

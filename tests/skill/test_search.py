@@ -162,7 +162,7 @@ def test_spiral_offset_moves_the_goal_with_a_lighter_press_and_a_stiffer_tip():
     r = np.array([[0.01, -0.004]] * 3)
     wrench = _pressed_face(r, np.full(3, 30.0))
     dy = RNG.normal(0.0, 1e-3, (3, 6))
-    spiral = np.array([[4.0, 0.08, 1.0], [4.0, 0.08, 0.5], [0.5, 0.08, 0.0]])
+    spiral = np.array([[4.0, 0.08, 1.0], [4.0, 0.08, 0.5], [0.2, 0.08, 0.0]])
     out = search.searched_offset(config, dy, wrench, None, spiral)
     s = search.spiral_path(config, spiral[:2, 0])
     assert np.linalg.norm(s[0]) > 0.005
@@ -180,7 +180,7 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert not search.skill_search("paper").active and not TrialConfig().search.active
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
-    spiral = search.skill_search("align").replace(spiral_speed=0.02)
+    spiral = search.skill_search("align").replace(spiral_speed=0.03)
     assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
 
