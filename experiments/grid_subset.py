@@ -44,7 +44,12 @@ def main(argv=None) -> None:
     p.add_argument("--threads", type=int, default=None)
     p.add_argument("--npz", help="write success, time_s, range, stop per trial here")
     args = p.parse_args(argv)
-    config, _ = read_eval_dir(args.eval)
+    if args.per_shape < 1:
+        raise SystemExit(f"--per-shape must be at least 1, got {args.per_shape}")
+    try:
+        config, _ = read_eval_dir(args.eval)
+    except (OSError, ValueError) as e:
+        raise SystemExit(f"--eval: {e}") from None
     skill = args.skill or config.skill
     trial = config.trial_config()
     trial = trial.replace(search=search_config(skill, args.search),
