@@ -22,15 +22,8 @@ from contact import search_config  # experiments/contact.py
 
 from mjx_peg.engines import run_trials
 from mjx_peg.evaluation.grid import load_controller, range_specs, read_eval_dir
+from mjx_peg.evaluation.stats import QUARTERS, quarter_labels
 from mjx_peg.world.task import TrialSpec
-
-
-def quarter_of(config, index: int) -> int:
-    """0..3: Q1 small linear & angular, Q2 small linear, large angular, Q3, Q4 (eval.py's)."""
-    linear, angular = config.ranges[index]
-    big_lin = config.linear_mm.index(linear) >= len(config.linear_mm) // 2
-    big_ang = config.angular_deg.index(angular) >= len(config.angular_deg) // 2
-    return 2 * big_lin + big_ang
 
 
 def main(argv=None) -> None:
@@ -68,14 +61,15 @@ def main(argv=None) -> None:
     result = run_trials(specs, controller(specs), engine="mujoco", config=trial,
                         threads=args.threads)  # fmt: skip
     wall = time.perf_counter() - start
-    ok, quarter = result.success, np.array([quarter_of(config, r) for r in ranges])
+    linear, angular = zip(*config.ranges, strict=True)
+    ok, quarter = result.success, quarter_labels(linear, angular)[ranges]  # eval.py's quarters
     cells = []
-    for q in range(4):
-        inside = quarter == q
+    for name in QUARTERS:
+        inside = quarter == name
         times = [result.time_s[(ranges == r) & ok].mean() for r in np.unique(ranges[inside])
                  if ((ranges == r) & ok).any()]  # fmt: skip
         mean = f"{np.mean(times):4.2f} s" if times else "- s"
-        cells.append(f"Q{q + 1} {ok[inside].mean() * 100:5.1f} % {mean}")
+        cells.append(f"{name} {ok[inside].mean() * 100:5.1f} % {mean}")
     changes = args.search or "(its constants)"
     print(f"{args.policy}, skill {skill} {changes}, {len(specs)} trials of {args.eval}: "
           + " | ".join(cells))  # fmt: skip
