@@ -8,8 +8,8 @@ The trials are the evaluation's own (`grid.range_specs` of its config.json): the
 `--per-shape` circles and squares (or whatever shapes it has) of each range, on the C engine with
 that evaluation's time limit; ranges keep their quarter. Prints per quarter the success over the
 trials and the mean over ranges of the mean time of the successes (as `eval.py` does), then
-the protective stops, chatter and physics steps. docs/spiral_timing.md used it with
-`--per-shape 5` (1,000 trials of `paper-small`, 140-210 s on 2 cores).
+the protective stops, the sensed peak force, chatter and physics steps. docs/spiral_timing.md
+used it with `--per-shape 5` (1,000 trials of `paper-small`, 125-210 s on 2 cores).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def main(argv=None) -> None:
     p.add_argument("--search", default="", help="SearchConfig constants changed, 'NAME=V;...'")
     p.add_argument("--time-limit", type=float, default=None, help="default: the evaluation's")
     p.add_argument("--threads", type=int, default=None)
-    p.add_argument("--npz", help="write success, time_s, range, stop per trial here")
+    p.add_argument("--npz", help="write success, time_s, range, stop, peak force per trial here")
     args = p.parse_args(argv)
     if args.per_shape < 1:
         raise SystemExit(f"--per-shape must be at least 1, got {args.per_shape}")
@@ -73,13 +73,15 @@ def main(argv=None) -> None:
     changes = args.search or "(its constants)"
     print(f"{args.policy}, skill {skill} {changes}, {len(specs)} trials of {args.eval}: "
           + " | ".join(cells))  # fmt: skip
+    peak = np.percentile(result.peak_force, [50, 99])
     print(f"all {ok.mean() * 100:.1f} %, protective stops {int(result.protective_stop.sum())}, "
+          f"sensed peak median {peak[0]:.0f} N, p99 {peak[1]:.0f} N, "
           f"chatter under 5 N {(result.chatter < 5).mean() * 100:.1f} %, failures with chatter "
           f">= 5 N {int(((result.chatter >= 5) & ~ok).sum())}, {result.steps.mean():,.0f} steps "
           f"per trial, wall {wall:.0f} s")  # fmt: skip
     if args.npz:
         np.savez(args.npz, success=ok, time_s=result.time_s, range=ranges,
-                 protective_stop=result.protective_stop)  # fmt: skip
+                 protective_stop=result.protective_stop, peak_force=result.peak_force)  # fmt: skip
 
 
 if __name__ == "__main__":

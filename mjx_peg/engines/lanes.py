@@ -143,7 +143,7 @@ class Lane:
                  profile: Callable[[str, float], None] | None = None):  # fmt: skip
         self.specs, self.params, self.config = specs, params, config
         self.profile = profile  # profile(stage, seconds), or None: no clock read
-        self.basis = fitted_basis(config.dmp)
+        self.basis = fitted_basis(config.movement)
         self.control = control_config(config)
         self.slots = slots
         self.nsim, self.kind = nsim, kind  # simulations per scene; batches' (nthread, persistent)

@@ -99,7 +99,7 @@ class _Program:
         self.config = config
         self.batch = batch
         self.recycle_every = recycle_every
-        basis = fitted_basis(config.dmp)
+        basis = fitted_basis(config.movement)
         self.basis = Basis(*(jnp.asarray(a) for a in basis))
         self.control = control_config(config, jnp)
         self.qpos_adr = jnp.asarray(ids.qpos_adr)

@@ -139,6 +139,14 @@ class TrialConfig:
         """Control periods in a settle window."""
         return max(1, int(round(self.settle_window_s / self.timestep)))
 
+    @property
+    def movement(self) -> dmp.DMPConfig:
+        """The DMP's constants the trial runs: `dmp`, its movement's duration T the skill's where
+        the skill names one (`SearchConfig.movement_s`)."""
+        if self.search.movement_s > 0:
+            return dataclasses.replace(self.dmp, duration=self.search.movement_s)
+        return self.dmp
+
     def replace(self, **changes) -> TrialConfig:
         return dataclasses.replace(self, **changes)
 

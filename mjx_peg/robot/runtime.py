@@ -117,7 +117,7 @@ class SkillRuntime:
         p = as_controller_params(vector, 1)
         self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
         self.hole = hole
-        self.basis = fitted_basis(cfg.dmp)
+        self.basis = fitted_basis(cfg.movement)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
         self.control = control_config(cfg)
         self.skill = None

@@ -76,7 +76,8 @@ def plan(hole: HoleEstimate, vector: np.ndarray, config: TrialConfig) -> dict:
     params = as_controller_params(vector, 1)
     k_y = dmp.stiffness_diag(params.k_t, params.k_theta)[0]
     y0 = start_state(goal_pos, goal_rot, start_pos, goal_rot)
-    t, y, _ = dmp.rollout(y0, np.zeros(6), k_y, config.dmp, fitted_basis(config.dmp).weights)
+    movement = config.movement
+    t, y, _ = dmp.rollout(y0, np.zeros(6), k_y, movement, fitted_basis(movement).weights)
     path = goal_pos + y[:, :3] @ goal_rot.T
     return dict(
         start_pos=start_pos,
