@@ -15,7 +15,7 @@ import pytest
 from brax.envs.wrappers.training import VmapWrapper
 
 from mjx_peg.engines import run_trials
-from mjx_peg.learn.config import TrainConfig
+from mjx_peg.learn.config import PRESETS, TrainConfig
 from mjx_peg.learn.curves import read_table
 from mjx_peg.learn.env import InsertionEnv, specs_from_seeds
 from mjx_peg.learn.ppo import deterministic_actions
@@ -26,7 +26,8 @@ from mjx_peg.policy.network import controller_vector
 
 ROOT = Path(__file__).resolve().parents[2]
 # A tiny run: 3 iterations of 16 trials of at most 0.6 s.
-TINY = TrainConfig(preset="quick", trials=48, num_envs=16, time_limit_s=0.6, seed=3)
+# `python train.py` with TINY_ARGS: the quick preset (its skill, the spiral, and its movement)
+TINY = PRESETS["quick"].replace(trials=48, num_envs=16, time_limit_s=0.6, seed=3)
 TINY_ARGS = ["--trials", "48", "--num-envs", "16", "--time-limit", "0.6", "--seed", "3"]
 DETERMINISTIC = ("iteration", "trials", "mean_return", "success_rate", "policy_loss", "kl")
 
