@@ -64,9 +64,9 @@ inserts 42 within 30 s and loses none of 20 of its successes. Its timing (t_w, T
 (docs/spiral_timing.md). `SKILLS["spiral"]` is the alignment and the spiral, and moves faster:
 its DMP's minimum-jerk movement lasts T = 1.5 s instead of the trial's 2 s (`movement_s`). With
 the spiral to free what lands on the rim, the faster approach inserts as many pegs and saves
-0.4-0.9 s per quarter of `paper-small`; the touchdown is harder (the sensed peak's p99 114 N ->
-145 N on the subset), and at 1.2 s it passes the 150 N protective stop in 11 % of the trials
-(docs/spiral_timing.md).
+0.6-0.8 s per quarter of `paper-small`. The touchdown is harder (the sensed peak's p99 114 N ->
+145 N): 0.4 % of the grid's trials protective-stop at 150 N, 7.4 % of the 500 trials with an
+unfiltered F/T sensor, and at 1.2 s 11 % with the UR5e's (docs/spiral_timing.md).
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
