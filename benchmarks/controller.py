@@ -26,7 +26,7 @@ from mjx_peg.skill import dmp, osc, params
 HEADING = "## Controller step"
 CONFIG = dmp.DMPConfig()
 CENTERS, WIDTHS = dmp.basis_centers(CONFIG.n_basis, CONFIG.phase_span)
-WEIGHTS = dmp.fit_minimum_jerk_weights(CONFIG)
+WEIGHTS = dmp.fit_forcing_weights(CONFIG)
 LIMITS = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
 
 

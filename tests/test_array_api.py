@@ -42,7 +42,7 @@ def _mass(rng, n):
 
 
 _CENTERS, _WIDTHS = dmp.basis_centers(dmp.DMPConfig().n_basis, dmp.DMPConfig().phase_span)
-_WEIGHTS = dmp.fit_minimum_jerk_weights(dmp.DMPConfig())
+_WEIGHTS = dmp.fit_forcing_weights(dmp.DMPConfig())
 
 
 def _cases():
@@ -92,6 +92,11 @@ def _cases():
             (0, None, None, None),
         ),
         "minimum_jerk": (lambda t: dmp.minimum_jerk(t, 0.9), lambda r: (r.uniform(-1, 2, b),), 0),
+        "cruise_profile": (
+            lambda t: dmp.cruise_profile(t, 0.9, 0.5),
+            lambda r: (r.uniform(-1, 2, b),),
+            0,
+        ),
         "critical_damping": (
             lambda k: dmp.critical_damping(k, 0.7),
             lambda r: (stiffness(r),),
@@ -280,7 +285,7 @@ _NO_JAX = textwrap.dedent(
     p = params.controller_from_action(np.zeros((2, 38)))
     k_y = dmp.stiffness_diag(p.k_t, p.k_theta)
     config = dmp.DMPConfig()
-    w = dmp.fit_minimum_jerk_weights(config)
+    w = dmp.fit_forcing_weights(config)
     c, wd = dmp.basis_centers(config.n_basis, config.phase_span)
     f = dmp.forcing(dmp.phase(np.array([0.1, 0.2]), 1.0, 4.0), w, c, wd)
     g_m = dmp.scaled_modified_goal(np.zeros(6), np.ones((2, 6)), f, 300.0, np.zeros(6))

@@ -141,11 +141,14 @@ class TrialConfig:
 
     @property
     def movement(self) -> dmp.DMPConfig:
-        """The DMP's constants the trial runs: `dmp`, its movement's duration T the skill's where
-        the skill names one (`SearchConfig.movement_s`)."""
+        """The DMP's constants the trial runs: `dmp`, its movement's duration T and cruise the
+        skill's where the skill names them (`SearchConfig.movement_s`, `movement_cruise`)."""
+        movement = self.dmp
         if self.search.movement_s > 0:
-            return dataclasses.replace(self.dmp, duration=self.search.movement_s)
-        return self.dmp
+            movement = dataclasses.replace(movement, duration=self.search.movement_s)
+        if self.search.movement_cruise > 0:
+            movement = dataclasses.replace(movement, cruise=self.search.movement_cruise)
+        return movement
 
     def replace(self, **changes) -> TrialConfig:
         return dataclasses.replace(self, **changes)
@@ -234,7 +237,7 @@ def control_config(config: TrialConfig, xp=np) -> ControlConfig:
 def fitted_basis(config: dmp.DMPConfig) -> Basis:
     """The forcing term's basis and weights, fitted once per DMP config (NumPy, float64)."""
     centers, widths = dmp.basis_centers(config.n_basis, config.phase_span)
-    weights = dmp.fit_minimum_jerk_weights(config)
+    weights = dmp.fit_forcing_weights(config)
     return Basis(np.asarray(weights), np.asarray(centers), np.asarray(widths))
 
 

@@ -62,11 +62,14 @@ of the 51 trials that `policies/paper` with the alignment fails on the 500 trial
 inserts 42 within 30 s and loses none of 20 of its successes. Its timing (t_w, T_r, v; from
 1 s, 1 s, 20 mm/s) is the fastest that kept the success on a 1,000-trial subset of `paper-small`
 (docs/spiral_timing.md). `SKILLS["spiral"]` is the alignment and the spiral, and moves faster:
-its DMP's minimum-jerk movement lasts T = 1.5 s instead of the trial's 2 s (`movement_s`). With
-the spiral to free what lands on the rim, the faster approach inserts as many pegs and saves
-0.6-0.8 s per quarter of `paper-small`. The touchdown is harder (the sensed peak's p99 114 N ->
-145 N): 0.4 % of the grid's trials protective-stop at 150 N, 7.4 % of the 500 trials with an
-unfiltered F/T sensor, and at 1.2 s 11 % with the UR5e's (docs/spiral_timing.md).
+its DMP's movement lasts T = 1.3 s instead of the trial's 2 s (`movement_s`) and cruises half of
+it at a constant speed instead of the minimum-jerk profile (`movement_cruise`,
+`dmp.cruise_profile`). With the spiral to free what lands on the rim, the faster approach
+inserts as many pegs; the cruise meets the board 28 % slower than a minimum-jerk profile of the
+same T, so the touchdown stays as gentle as the minimum-jerk 1.75-1.8 s (the sensed peak's p99
+131 N on a 1,000-trial subset of `paper-small`, against 145 N for the minimum-jerk 1.5 s and
+114 N for 2 s; with an unfiltered F/T sensor 7 of 500 trials protective-stop, against 37 at
+1.5 s; docs/spiral_timing.md, "The cruise").
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
@@ -108,6 +111,8 @@ class SearchConfig:
     # s: T, the duration of the DMP's movement (`dmp.DMPConfig.duration`) for this skill; 0: the
     # trial's (`TrialConfig.movement`)
     movement_s: float = 0.0
+    # c, the fraction of that movement at constant speed (`dmp.DMPConfig.cruise`); 0: the trial's
+    movement_cruise: float = 0.0
 
     def __post_init__(self):
         for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_depth",
@@ -116,6 +121,10 @@ class SearchConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise UsageError(f"SearchConfig.{name} must be a number >= 0, got {value!r}")
+        if not (math.isfinite(self.movement_cruise) and 0 <= self.movement_cruise < 1):
+            raise UsageError(
+                f"SearchConfig.movement_cruise must be in [0, 1), got {self.movement_cruise!r}"
+            )
         if not (math.isfinite(self.lateral_scale) and 0 <= self.lateral_scale <= 1):
             raise UsageError(
                 f"SearchConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
@@ -155,7 +164,9 @@ SKILLS = {
     "paper": SearchConfig(),
     "search": SearchConfig(centre_gain=1.0),
     "align": SearchConfig(centre_gain=1.0, align_rate=1.0),
-    "spiral": SearchConfig(centre_gain=1.0, align_rate=1.0, spiral_speed=0.03, movement_s=1.5),
+    "spiral": SearchConfig(
+        centre_gain=1.0, align_rate=1.0, spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5
+    ),
 }
 
 
@@ -166,7 +177,8 @@ SKILL_DESCRIPTIONS = {
     "align": "the contact search, and the goal's rotation following the moment (an integral "
     "rotational compliance; its tilt once the peg is in the hole), skill/search.py",
     "spiral": "the alignment, and a spiral of the goal about the estimated hole while the peg "
-    "rests on the board top, its press lighter and its tip stiffer; a 1.5 s movement, "
+    "rests on the board top, its press lighter and its tip stiffer; a 1.3 s movement that "
+    "cruises half of it, "
     "skill/search.py",
 }
 

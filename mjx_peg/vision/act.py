@@ -165,8 +165,10 @@ def run_act(
     engine_options: dict | None = None,
     progress: bool = True,
     time_limit_s: float = 60.0,
+    skill: str | None = None,
 ) -> dict:
-    """Run both conditions for every shape; write trials.csv, summary.json, summary.md."""
+    """Run both conditions for every shape; write trials.csv, summary.json, summary.md. `skill`:
+    a named skill (skill.search.SKILLS); None: the one the policy was trained with."""
     from tqdm import tqdm
 
     from mjx_peg.engines import run_trials
@@ -176,7 +178,7 @@ def run_act(
     from mjx_peg.policy.export import policy_skill
     from mjx_peg.skill.search import skill_search
 
-    skill = policy_skill(policy)  # the skill the policy was trained with
+    skill = skill or policy_skill(policy)
     config = TrialConfig(time_limit_s=time_limit_s, search=skill_search(skill))
     rows = []
     summary = {

@@ -25,6 +25,7 @@ from pathlib import Path
 from mjx_peg import cli
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import resolve_policy
+from mjx_peg.skill.search import SKILLS
 
 PROG = "mjx-peg-vision"
 DEFAULT_MODEL = Path("runs/vision/model")
@@ -97,6 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial")
     a.add_argument("--seed", type=cli.SEED, default=0)
     a.add_argument("--workers", type=cli.WORKERS, help="engine lanes (default: every core)")
+    cli.add_skill_option(a, tuple(SKILLS), None, "the policy's, paper for the baseline")
     _force(a, "trials.csv, summary.md and summary.json")
 
     f = sub.add_parser("figures", help="README pictures: predictions drawn, randomization gallery")
@@ -237,6 +239,7 @@ def _act(args) -> str:
         options,
         progress=not args.no_progress,
         time_limit_s=args.time_limit,
+        skill=args.skill,
     )
     a = s["all"]
     return (

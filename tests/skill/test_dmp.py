@@ -1,10 +1,11 @@
-"""The compliant DMP: phase, fitted minimum-jerk forcing, goal, coupling, critical damping."""
+"""The compliant DMP: phase, the fitted forcing (minimum jerk, cruise), goal, coupling, damping."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
+from mjx_peg.errors import UsageError
 from mjx_peg.skill import dmp
 
 CONFIG = dmp.DMPConfig()
@@ -14,7 +15,7 @@ GOAL = np.array([0.02, 0.01, 0.0, 0.0, 0.05, -0.02])
 
 @pytest.fixture(scope="module")
 def weights():
-    return dmp.fit_minimum_jerk_weights(CONFIG)
+    return dmp.fit_forcing_weights(CONFIG)
 
 
 def test_phase_solves_its_ode():
@@ -46,9 +47,7 @@ def test_forcing_is_finite_anywhere_in_phase(weights):
 
 
 def test_fit_is_deterministic():
-    np.testing.assert_array_equal(
-        dmp.fit_minimum_jerk_weights(CONFIG), dmp.fit_minimum_jerk_weights(CONFIG)
-    )
+    np.testing.assert_array_equal(dmp.fit_forcing_weights(CONFIG), dmp.fit_forcing_weights(CONFIG))
 
 
 def test_free_space_reaches_goal_along_minimum_jerk(weights):
@@ -63,6 +62,45 @@ def test_free_space_reaches_goal_along_minimum_jerk(weights):
     goal_error = np.abs(y[-1] - GOAL)
     print(f"goal error {goal_error[:3].max():.2e} m, {goal_error[3:].max():.2e} rad")
     assert goal_error.max() < 1e-4
+
+
+@pytest.mark.parametrize("cruise", [0.25, 0.5, 0.8])
+def test_cruise_profile_covers_the_travel_at_its_cruising_speed(cruise):
+    """The cruise profile: 0 -> 1 in T, at rest at both ends, its speed and acceleration
+    continuous, its speed 2 / (1 + c) travel / T over the middle fraction c (the integrals of pdd
+    and pd match pd and p)."""
+    duration = 1.5
+    t = np.linspace(0.0, duration, 30001)
+    p, pd, pdd = dmp.cruise_profile(t, duration, cruise)
+    assert p[0] == 0.0 and p[-1] == pytest.approx(1.0, abs=1e-12)
+    assert pd[0] == pd[-1] == 0.0 and abs(pdd[0]) < 1e-12 and abs(pdd[-1]) < 1e-12
+    np.testing.assert_allclose(np.cumsum(pd[1:] + pd[:-1]) * (t[1] - t[0]) / 2, p[1:], atol=1e-8)
+    np.testing.assert_allclose(np.cumsum(pdd[1:] + pdd[:-1]) * (t[1] - t[0]) / 2, pd[1:],
+                               atol=1e-7)  # fmt: skip
+    middle = np.abs(t / duration - 0.5) <= cruise / 2
+    np.testing.assert_allclose(pd[middle], 2.0 / (1.0 + cruise) / duration)
+    assert pd.max() == pytest.approx(2.0 / (1.0 + cruise) / duration)
+    assert np.max(np.abs(np.diff(pd))) < 1e-3 and np.max(np.abs(np.diff(pdd))) < 1e-2
+    assert np.all(pd >= 0.0)
+    minimum_jerk_peak = dmp.minimum_jerk(t, duration)[1].max()
+    assert pd.max() < minimum_jerk_peak  # 1.875 travel / T
+
+
+def test_free_space_follows_the_cruise_and_reaches_goal():
+    """F = 0, K = k_ref, a cruising movement (c = 0.5, T = 1.5 s): within 1 % of the travel of
+    its profile, at the goal (1e-4) after; the minimum-jerk path of T differs by > 2 %."""
+    config = dataclasses.replace(CONFIG, duration=1.5, cruise=0.5)
+    k_y = np.full(6, config.k_ref)
+    w = dmp.fit_forcing_weights(config)
+    t, y, _ = dmp.rollout(Y0, GOAL, k_y, config, w, duration=6.0, dt=2e-3)
+    travel = np.abs(GOAL - Y0)
+    profile = Y0 + (GOAL - Y0) * dmp.movement_profile(t, config)[0][:, None]
+    assert np.max(np.abs(y - profile) / travel) < 0.01
+    assert np.abs(y[-1] - GOAL).max() < 1e-4
+    jerk_path = Y0 + (GOAL - Y0) * dmp.minimum_jerk(t, 1.5)[0][:, None]
+    assert np.max(np.abs(y - jerk_path) / travel) > 0.02
+    with pytest.raises(UsageError, match="cruise"):
+        dmp.DMPConfig(cruise=1.0)
 
 
 @pytest.mark.parametrize("k", [30.0, 300.0, 1000.0])

@@ -241,7 +241,7 @@ def test_osc_tracks_a_dmp_in_free_space(kind):
     data, site = _start(model, kind)
     config = dmp.DMPConfig()
     centers, widths = dmp.basis_centers(config.n_basis, config.phase_span)
-    weights = dmp.fit_minimum_jerk_weights(config)
+    weights = dmp.fit_forcing_weights(config)
     start_pos = data.site_xpos[site].copy()
     start_rot = data.site_xmat[site].reshape(3, 3).copy()
     # Goal: 10 cm down, 5 cm sideways, turned by 10 deg about a tilted axis.

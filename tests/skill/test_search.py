@@ -180,27 +180,29 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert not search.skill_search("paper").active and not TrialConfig().search.active
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
-    spiral = search.skill_search("align").replace(spiral_speed=0.03, movement_s=1.5)
+    spiral = search.skill_search("align").replace(
+        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5
+    )
     assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
 
 
-def test_a_skill_that_names_its_movement_runs_the_minimum_jerk_path_of_that_duration():
-    """`SearchConfig.movement_s` replaces the DMP's movement duration T; the forcing fitted at it
-    follows the minimum-jerk path of T (within 1 % of the travel), and the other skills keep the
-    trial's own DMP."""
+def test_a_skill_that_names_its_movement_runs_the_path_of_that_movement():
+    """`SearchConfig.movement_s` and `movement_cruise` replace the DMP's movement duration T and
+    cruise; the forcing fitted at them follows the cruising path of T (within 1 % of the travel),
+    and the other skills keep the trial's own DMP (minimum jerk over 2 s)."""
     from mjx_peg.engines.trial import TrialConfig, fitted_basis
     from mjx_peg.skill import dmp
 
     assert TrialConfig().movement == TrialConfig().dmp
     assert TrialConfig(search=search.skill_search("align")).movement == TrialConfig().dmp
     movement = TrialConfig(search=search.skill_search("spiral")).movement
-    assert movement == dmp.DMPConfig(duration=1.5)
+    assert movement == dmp.DMPConfig(duration=1.3, cruise=0.5)
     y0, goal = np.array([0.0, 0.0, -0.15, 0.1, -0.05, 0.2]), np.zeros(6)
     k_y = np.full(6, movement.k_ref)
     weights = fitted_basis(movement).weights
     t, y, _ = dmp.rollout(y0, goal, k_y, movement, weights, duration=3.0, dt=2e-3)
-    p, _, _ = dmp.minimum_jerk(t, 1.5)
+    p, _, _ = dmp.cruise_profile(t, 1.3, 0.5)
     path = y0 + (goal - y0) * p[:, None]
     assert np.max(np.abs(y - path) / np.abs(goal - y0).max()) < 0.01
     slow = y0 + (goal - y0) * dmp.minimum_jerk(t, 2.0)[0][:, None]
@@ -251,6 +253,8 @@ def test_bad_config_and_unknown_skill_are_one_clear_error():
         SearchConfig(spiral_lateral=-0.1)
     with pytest.raises(UsageError, match="movement_s"):
         SearchConfig(movement_s=-1.0)
+    with pytest.raises(UsageError, match="movement_cruise"):
+        SearchConfig(movement_cruise=1.0)
     with pytest.raises(UsageError, match="paper, search"):
         search.skill_search("wiggle")
 

@@ -241,6 +241,24 @@ def test_bad_input_is_one_line(tmp_path, capsys):
         CameraCalibration.from_json(doc | {"intrinsics": {"fx": 1, "fy": 1, "cx": 0}})
 
 
+@pytest.mark.parametrize("skill", [None, "spiral"])
+def test_act_runs_the_named_skill(tmp_path, monkeypatch, skill):
+    """`act --skill NAME` runs that skill; without it, the policy's own (run_act's None)."""
+    from mjx_peg.vision import act, localizer
+
+    seen = {}
+
+    def fake_run_act(loc, policy, out, *args, skill=None, **kwargs):
+        seen["skill"] = skill
+        return {"all": dict.fromkeys(("vision_success", "sampled_success", "exact_success"), 1)}
+
+    monkeypatch.setattr(act, "run_act", fake_run_act)
+    monkeypatch.setattr(localizer.Localizer, "load", staticmethod(lambda path: None))
+    argv = ["act", "--out", str(tmp_path / "a"), "--trials", "1", "--no-progress"]
+    assert cli.main(argv + (["--skill", skill] if skill else [])) == 0
+    assert seen == {"skill": skill}
+
+
 def test_inference_needs_neither_jax_nor_mujoco():
     """The robot's computer can localize: the localizer and the CLI's parser import NumPy only."""
     import subprocess
