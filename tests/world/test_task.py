@@ -2,7 +2,6 @@
 reproducible; bad configs fail with one line; TrialSpec storage round trips."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -20,12 +19,7 @@ N = 10_000
 def default_specs():
     # Start jitter exercised here (the default is none), so the ranges it must obey are tested.
     config = TaskConfig(start_xy_jitter=0.01, start_tilt_jitter=np.deg2rad(5.0))
-    start = time.perf_counter()
-    specs = sample_trials(config, 0, N)
-    elapsed = time.perf_counter() - start
-    print(f"sample_trials: {N} trials in {elapsed:.2f} s")
-    assert elapsed < 10.0
-    return config, specs
+    return config, sample_trials(config, 0, N)
 
 
 @pytest.fixture(scope="module")
