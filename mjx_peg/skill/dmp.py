@@ -175,23 +175,21 @@ def dmp_acceleration(y, yd, g_m, k_y, d_y, tau):
     return (k_y * (g_m - y) - d_y * yd) / tau
 
 
+def _smooth_step(x):
+    """S(x) = 10 x^3 - 15 x^4 + 6 x^5 (the minimum-jerk step), S', S'' and the integral of S from
+    0 to x."""
+    return (x**3 * (10.0 - 15.0 * x + 6.0 * x * x), x**2 * (30.0 - 60.0 * x + 30.0 * x * x),
+            x * (60.0 - 180.0 * x + 120.0 * x * x), x**4 * (2.5 - 3.0 * x + x * x))  # fmt: skip
+
+
 def minimum_jerk(t, duration):
     """p, pd, pdd (...,): p = 10 r^3 - 15 r^4 + 6 r^5, r = clip(t / duration, 0, 1), and its rates.
 
     The normalized minimum-jerk profile: y(t) = y0 + (g - y0) p(t).
     """
     xp = namespace_of(t)
-    r = xp.clip(xp.asarray(t) / duration, 0.0, 1.0)
-    p = r**3 * (10.0 - 15.0 * r + 6.0 * r * r)
-    pd = r**2 * (30.0 - 60.0 * r + 30.0 * r * r) / duration
-    pdd = r * (60.0 - 180.0 * r + 120.0 * r * r) / duration**2
-    return p, pd, pdd
-
-
-def _smooth_step(x):
-    """S(x) = 10 x^3 - 15 x^4 + 6 x^5 (the minimum-jerk step), S' and its integral from 0 to x."""
-    return (x**3 * (10.0 - 15.0 * x + 6.0 * x * x), x**2 * (30.0 - 60.0 * x + 30.0 * x * x),
-            x**4 * (2.5 - 3.0 * x + x * x))  # fmt: skip
+    p, dp, ddp, _ = _smooth_step(xp.clip(xp.asarray(t) / duration, 0.0, 1.0))
+    return p, dp / duration, ddp / duration**2
 
 
 def cruise_profile(t, duration, cruise):
@@ -209,8 +207,8 @@ def cruise_profile(t, duration, cruise):
     r = xp.clip(xp.asarray(t) / duration, 0.0, 1.0)
     b = (1.0 - cruise) / 2.0
     v = 1.0 / (1.0 - b)
-    s_in, ds_in, int_in = _smooth_step(xp.clip(r / b, 0.0, 1.0))
-    s_out, ds_out, int_out = _smooth_step(xp.clip((1.0 - r) / b, 0.0, 1.0))
+    s_in, ds_in, _, int_in = _smooth_step(xp.clip(r / b, 0.0, 1.0))
+    s_out, ds_out, _, int_out = _smooth_step(xp.clip((1.0 - r) / b, 0.0, 1.0))
     blend_in, blend_out = r < b, r > 1.0 - b
     p = xp.where(blend_in, v * b * int_in,
                  xp.where(blend_out, 1.0 - v * b * int_out, v * (r - b / 2.0)))  # fmt: skip
