@@ -7,12 +7,14 @@
     mjx-peg-vision evaluate --model runs/vision/model --data runs/vision/data/test \
         --out runs/vision/eval/test
     mjx-peg-vision localize IMAGE.png --camera CALIB.json [--model runs/vision/model]
-    mjx-peg-vision act --model runs/vision/model --policy baseline --out runs/vision/act
+    mjx-peg-vision act --policy paper --skill spiral --out runs/vision/act
     mjx-peg-vision figures --model runs/vision/model --data runs/vision/data/test
 
-The README's command-line rules hold: bad input (a missing image, a calibration without
-intrinsics, a flag out of its range) is one line on stderr and exit status 2 before anything is
-written; --out is never an input; `render` and `train` resume a directory made with the same
+`evaluate`, `localize`, `act` and `figures` read the shipped localizer (`policies/localizer`)
+unless --model names another; `train` writes to runs/vision/model. The README's command-line
+rules hold: bad input (a missing image, a calibration without intrinsics, a flag out of its
+range) is one line on stderr and exit status 2 before anything is written; --out is never an
+input; `render` and `train` resume a directory made with the same
 options; an earlier result is replaced only with --force, which moves it aside.
 """
 
@@ -24,11 +26,12 @@ from pathlib import Path
 
 from mjx_peg import cli
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.shipped import resolve_policy
+from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy
 from mjx_peg.skill.search import SKILLS
 
 PROG = "mjx-peg-vision"
-DEFAULT_MODEL = Path("runs/vision/model")
+TRAIN_OUT = Path("runs/vision/model")  # where `train` writes a new localizer
+SHIPPED_MODEL = SHIPPED_DIR / "localizer"  # the localizer the other commands read by default
 COUNT = cli.integer(1, 1_000_000)  # images in a split
 PIXELS = cli.integer(64, 2048)  # image width, height
 STEPS = cli.integer(1, 1_000_000)  # training steps of one network
@@ -44,6 +47,13 @@ def _force(p: argparse.ArgumentParser, what: str) -> None:
         action="store_true",
         help=f"replace {what} in --out: the earlier one is moved aside (NAME.replaced-DATE-TIME)",
     )
+
+
+_MODEL = {
+    "type": cli.nonempty_path,
+    "default": SHIPPED_MODEL,
+    "help": "localizer directory (model.json + model.npz); default: the shipped policies/localizer",
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -65,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("train", help="train the localizer (CPU), export npz + json")
     t.add_argument("--data", type=path, required=True, help="training split")
     t.add_argument("--val", type=path, help="validation split (its numbers go into model.json)")
-    t.add_argument("--out", type=path, default=DEFAULT_MODEL, help="model directory (resumed)")
+    t.add_argument("--out", type=path, default=TRAIN_OUT, help="model directory (resumed)")
     t.add_argument("--detector-steps", type=STEPS, help="default 1500")
     t.add_argument("--regressor-steps", type=STEPS, help="default 4000")
     t.add_argument("--batch", type=cli.integer(1, 4096), help="default 64")
@@ -74,7 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     _force(t, "an earlier localizer (any options)")
 
     e = sub.add_parser("evaluate", help="error percentiles of a localizer on a split")
-    e.add_argument("--model", type=path, default=DEFAULT_MODEL)
+    e.add_argument("--model", **_MODEL)
     e.add_argument("--data", type=path, required=True, help="split to evaluate on")
     e.add_argument("--out", type=path, required=True, help="report directory")
     _force(e, "summary.md, metrics.json and errors.csv")
@@ -82,10 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
     lo = sub.add_parser("localize", help="one image + calibration -> hole estimate (JSON)")
     lo.add_argument("image", type=path, help="PNG or JPEG from the calibrated camera")
     lo.add_argument("--camera", type=path, required=True, help="calibration JSON (camera.py)")
-    lo.add_argument("--model", type=path, default=DEFAULT_MODEL)
+    lo.add_argument("--model", **_MODEL)
 
     a = sub.add_parser("act", help="vision to action: trials with the localizer's estimates")
-    a.add_argument("--model", type=path, default=DEFAULT_MODEL)
+    a.add_argument("--model", **_MODEL)
     a.add_argument(
         "--policy",
         default="baseline",
@@ -102,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     _force(a, "trials.csv, summary.md and summary.json")
 
     f = sub.add_parser("figures", help="README pictures: predictions drawn, randomization gallery")
-    f.add_argument("--model", type=path, default=DEFAULT_MODEL)
+    f.add_argument("--model", **_MODEL)
     f.add_argument("--data", type=path, required=True, help="split to draw from")
     f.add_argument("--out", type=path, default=Path("docs/vision"))
     _force(f, "predictions.png and gallery.png")

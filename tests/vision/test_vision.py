@@ -241,6 +241,26 @@ def test_bad_input_is_one_line(tmp_path, capsys):
         CameraCalibration.from_json(doc | {"intrinsics": {"fx": 1, "fy": 1, "cx": 0}})
 
 
+def test_reading_commands_default_to_the_shipped_localizer():
+    """evaluate, localize, act and figures read policies/localizer without --model (and it loads);
+    train writes a new one to runs/vision/model."""
+    from pathlib import Path
+
+    from mjx_peg.policy.shipped import SHIPPED_DIR
+    from mjx_peg.vision.localizer import Localizer
+
+    parser = cli.build_parser()
+    for argv in (
+        ["evaluate", "--data", "d", "--out", "o"],
+        ["localize", "img.png", "--camera", "c.json"],
+        ["act", "--out", "o"],
+        ["figures", "--data", "d"],
+    ):
+        assert parser.parse_args(argv).model == SHIPPED_DIR / "localizer"
+    assert parser.parse_args(["train", "--data", "d"]).out == Path("runs/vision/model")
+    assert Localizer.load(SHIPPED_DIR / "localizer") is not None
+
+
 @pytest.mark.parametrize("skill", [None, "spiral"])
 def test_act_runs_the_named_skill(tmp_path, monkeypatch, skill):
     """`act --skill NAME` runs that skill; without it, the policy's own (run_act's None)."""
