@@ -201,7 +201,8 @@ def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measur
     wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
     dy = dmp.compliance_offset(skill.compliance, wrench)
     if config.search.active:
-        dy = searched_offset(config.search, dy, wrench, meas.aligned, meas.spiral)
+        height = -y[..., 2]  # the tcp over the goal (goal z points down, into the hole)
+        dy = searched_offset(config.search, dy, wrench, meas.aligned, meas.spiral, height)
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)

@@ -1,12 +1,13 @@
 """The contact search: how the skill frees a peg resting on the board top and turns it with a
-tilted or turned hole (an extension).
+tilted or turned hole, then pushes it through (an extension).
 
 The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10).
 A peg that lands on the rim stays there: static friction holds its tip until the lateral
 tracking force passes mu N, i.e. until a lateral goal offset s passes mu N (1 / K_e + C_xx)
-(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Five
-elements, each off by default, change that while the peg rests on something. In the goal
-frame (the tool's orientation at the goal: z points down, into the hole):
+(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Six
+elements, each off by default, change that, the first five while the peg rests on something,
+the last once it is deep in the hole. In the goal frame (the tool's orientation at the goal:
+z points down, into the hole):
 
     gate        g = clip((N - f_on) / (f_full - f_on), 0, 1),  N = -F_z  (the board pushing up)
     press       ydd_z <= a_p                         the axial command, and so the press
@@ -20,6 +21,9 @@ frame (the tool's orientation at the goal: z points down, into the hole):
                 axis (`spiral_path`), tau the time the peg has rested (`spiral_state`); while
                 it runs (sigma): dy_z <- (1 + sigma (kappa - 1)) dy_z, c_lat -> c_s, k_cop ->
                 k_cop (1 + sigma (k_s - 1))
+    insertion   dy_z <- (1 + b (kappa_i - 1)) dy_z,  b = clip((d - d_i) / d_r, 0, 1), d the
+                tcp's depth below the hole's estimated entrance: a stiffer press once the peg
+                is deep in the hole (no gate)
 
 The centring is the paper's moment-to-shift coupling (C[0,4], C[1,3]) divided by the axial
 force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from
@@ -71,6 +75,22 @@ same T, so the touchdown stays as gentle as the minimum-jerk 1.75-1.8 s (the sen
 114 N for 2 s; with an unfiltered F/T sensor 7 of 500 trials protective-stop, against 37 at
 1.5 s; docs/spiral_timing.md, "The cruise").
 
+The insertion press pushes a peg through the hole once it is in. The axial compliance C_zz that
+keeps the touchdown and the rim's friction low also sets how hard a peg in the hole is pushed:
+the goal lies at the table top, and the press is about (g_z - y_z) / (1 / K_e + C_zz), ~20 N
+40 mm above the table, falling as the peg goes down. A peg that entered a tilted hole slides
+against its walls' friction at that press, 10-20 mm/s; in `paper-small`'s Q2 (tilts up to
+12 deg) that is most of the time to insert (a trial at the median: 0.6 s to the entrance, 0.5 s
+to turn with the hole, 1.7 s for the last 30 mm). Past the depth d_i (35 mm) below the
+estimated entrance the peg is in the hole whatever the height error (at most 8 mm in the
+paper's grids, 9.6 mm at 60 mm) and has turned with it (the alignment starts at d_a, 20 mm);
+over the next d_r (15 mm) the axial compliance falls to kappa_i C_zz (0.5). Earlier or stiffer,
+the press wedges pegs not yet turned with the hole into protective stops. Measured on the
+1,000-trial subset of `paper-small` (`policies/paper`; docs/spiral_timing.md, "The insertion
+press"): the same success per quarter (99.6 / 96.8 / 97.2 / 96.8 %) in 1.57 / 2.90 / 3.17 /
+4.43 s against 1.86 / 3.66 / 3.84 / 5.33 s, 3 protective stops as before, the sensed peak's p99
+132 N (131). `SKILLS["spiral"]` has it.
+
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
 """
@@ -113,11 +133,15 @@ class SearchConfig:
     movement_s: float = 0.0
     # c, the fraction of that movement at constant speed (`dmp.DMPConfig.cruise`); 0: the trial's
     movement_cruise: float = 0.0
+    insert_axial: float = 1.0  # kappa_i: axial compliance deep in the hole, times C_zz; 1: off
+    insert_depth: float = 0.035  # m: d_i, the tcp's depth below the estimated entrance where
+    # the stiffer press starts
+    insert_ramp: float = 0.015  # m: d_r, the further depth over which it blends in
 
     def __post_init__(self):
         for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_depth",
                      "spiral_speed", "spiral_wait", "spiral_centre", "entry_depth",
-                     "movement_s"):  # fmt: skip
+                     "movement_s", "insert_depth"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise UsageError(f"SearchConfig.{name} must be a number >= 0, got {value!r}")
@@ -130,7 +154,7 @@ class SearchConfig:
                 f"SearchConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
             )
         for name in ("spiral_pitch", "spiral_radius", "spiral_ramp", "spiral_axial",
-                     "entry_follow"):  # fmt: skip
+                     "entry_follow", "insert_axial", "insert_ramp"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"SearchConfig.{name} must be a number > 0, got {value!r}")
@@ -153,6 +177,7 @@ class SearchConfig:
             or self.centre_gain > 0
             or self.align_rate > 0
             or self.spiral_speed > 0
+            or self.insert_axial != 1.0
         )
 
     def replace(self, **changes) -> SearchConfig:
@@ -165,7 +190,12 @@ SKILLS = {
     "search": SearchConfig(centre_gain=1.0),
     "align": SearchConfig(centre_gain=1.0, align_rate=1.0),
     "spiral": SearchConfig(
-        centre_gain=1.0, align_rate=1.0, spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5
+        centre_gain=1.0,
+        align_rate=1.0,
+        spiral_speed=0.03,
+        movement_s=1.3,
+        movement_cruise=0.5,
+        insert_axial=0.5,
     ),
 }
 
@@ -177,9 +207,8 @@ SKILL_DESCRIPTIONS = {
     "align": "the contact search, and the goal's rotation following the moment (an integral "
     "rotational compliance; its tilt once the peg is in the hole), skill/search.py",
     "spiral": "the alignment, and a spiral of the goal about the estimated hole while the peg "
-    "rests on the board top, its press lighter and its tip stiffer; a 1.3 s movement that "
-    "cruises half of it, "
-    "skill/search.py",
+    "rests on the board top, its press lighter and its tip stiffer; a stiffer press deep in the "
+    "hole; a 1.3 s movement that cruises half of it, skill/search.py",
 }
 
 
@@ -206,11 +235,12 @@ def centre_of_pressure(wrench, min_force: float):
     return xp.stack([wrench[..., 4], -wrench[..., 3]], axis=-1) / n[..., None]
 
 
-def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None):
-    """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment and
-    spiral elements applied, from the wrench (..., 6) the compliance sees, the goal's rotation
-    (..., 3) the alignment found (`aligned_rotation`) and the spiral's state (..., 3)
-    (`spiral_state`); None: none."""
+def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None, height=None):
+    """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment,
+    spiral and insertion elements applied, from the wrench (..., 6) the compliance sees, the
+    goal's rotation (..., 3) the alignment found (`aligned_rotation`), the spiral's state (..., 3)
+    (`spiral_state`) and the tcp's height (...,) over the goal along the goal's z (m; the
+    insertion press's depth); None: none."""
     xp = namespace_of(dy, wrench)
     g = resting_gate(config, wrench)[..., None]
     c_lat, k_cop, axial = config.lateral_scale, config.centre_gain, dy[..., 2:3]
@@ -220,6 +250,10 @@ def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None
         c_lat = c_lat + sigma * (config.spiral_lateral - c_lat)
         k_cop = k_cop * (1.0 + sigma * (config.spiral_centre - 1.0))
         axial = axial * (1.0 + sigma * (config.spiral_axial - 1.0))
+    if config.insert_axial != 1.0 and height is not None:
+        depth = (HOLE_DEPTH - GOAL_HEIGHT) - height  # below the hole's estimated entrance
+        b = xp.clip((depth - config.insert_depth) / config.insert_ramp, 0.0, 1.0)[..., None]
+        axial = axial * (1.0 + b * (config.insert_axial - 1.0))
     lateral = dy[..., :2] * (1.0 - g * (1.0 - c_lat))
     if config.centre_gain > 0:
         lateral = lateral - k_cop * g * centre_of_pressure(wrench, config.force_full)

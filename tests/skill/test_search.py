@@ -174,6 +174,22 @@ def test_spiral_offset_moves_the_goal_with_a_lighter_press_and_a_stiffer_tip():
     np.testing.assert_array_equal(out[:, 3:], dy[:, 3:])
 
 
+def test_insertion_press_stiffens_the_axial_compliance_deep_in_the_hole():
+    """dy_z times 1 + b (kappa_i - 1), b rising from 0 at d_i below the estimated entrance (80 mm
+    over the goal) to 1 at d_i + d_r; every other component, and the offset without a height,
+    as they were; with no gate: the same whatever the wrench."""
+    config = SearchConfig(insert_axial=0.4, insert_depth=0.03, insert_ramp=0.02)
+    height = 0.08 - np.array([0.0, 0.03, 0.04, 0.05, 0.07])  # depths 0, 30, 40, 50, 70 mm
+    dy = RNG.normal(0.0, 1e-3, (5, 6))
+    wrench = RNG.normal(0.0, 5.0, (5, 6))
+    out = search.searched_offset(config, dy, wrench, height=height)
+    np.testing.assert_allclose(out[:, 2] / dy[:, 2], [1.0, 1.0, 0.7, 0.4, 0.4], rtol=1e-12)
+    np.testing.assert_array_equal(out[:, [0, 1, 3, 4, 5]], dy[:, [0, 1, 3, 4, 5]])
+    np.testing.assert_array_equal(search.searched_offset(config, dy, wrench), dy)
+    free = search.searched_offset(config, dy, np.zeros_like(wrench), height=height)
+    np.testing.assert_array_equal(free[:, 2], out[:, 2])
+
+
 def test_the_paper_skill_is_the_default_and_changes_no_torque():
     from mjx_peg.engines.trial import TrialConfig, control_config
 
@@ -181,7 +197,7 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
     spiral = search.skill_search("align").replace(
-        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5
+        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5, insert_axial=0.5
     )
     assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
@@ -214,7 +230,8 @@ def test_numpy_and_jax_agree(x64):
     import jax.numpy as jnp
 
     config = SearchConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
-                          spiral_speed=0.01, spiral_wait=0.0)  # fmt: skip
+                          spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
+                          insert_depth=0.005)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
     wrench = wrench + RNG.normal(0.0, 0.5, wrench.shape)
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
@@ -224,7 +241,7 @@ def test_numpy_and_jax_agree(x64):
 
     def both(dy, wrench, ydd, tilt, spiral, goal):
         return (
-            search.searched_offset(config, dy, wrench, tilt, spiral),
+            search.searched_offset(config, dy, wrench, tilt, spiral, goal[0][..., 2]),
             search.bounded_press(config, ydd),
             search.aligned_rotation(config, tilt, wrench, *goal, 0.002),
             search.spiral_state(config, spiral, wrench, *goal, 0.002),
@@ -255,6 +272,10 @@ def test_bad_config_and_unknown_skill_are_one_clear_error():
         SearchConfig(movement_s=-1.0)
     with pytest.raises(UsageError, match="movement_cruise"):
         SearchConfig(movement_cruise=1.0)
+    with pytest.raises(UsageError, match="insert_axial"):
+        SearchConfig(insert_axial=0.0)
+    with pytest.raises(UsageError, match="insert_ramp"):
+        SearchConfig(insert_ramp=-0.01)
     with pytest.raises(UsageError, match="paper, search"):
         search.skill_search("wiggle")
 
