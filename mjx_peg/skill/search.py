@@ -81,7 +81,7 @@ the goal lies at the table top, and the press is about (g_z - y_z) / (1 / K_e + 
 40 mm above the table, falling as the peg goes down. A peg that entered a tilted hole slides
 against its walls' friction at that press, 10-20 mm/s; in `paper-small`'s Q2 (tilts up to
 12 deg) that is most of the time to insert (a trial at the median: 0.6 s to the entrance, 0.5 s
-to turn with the hole, 1.7 s for the last 30 mm). Past the depth d_i (35 mm) below the
+to turn with the hole, 1.7 s for the last 27 mm). Past the depth d_i (35 mm) below the
 estimated entrance the peg is in the hole whatever the height error (at most 8 mm in the
 paper's grids, 9.6 mm at 60 mm) and has turned with it (the alignment starts at d_a, 20 mm);
 over the next d_r (15 mm) the axial compliance falls to kappa_i C_zz (0.5). Earlier or stiffer,
