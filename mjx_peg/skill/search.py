@@ -104,6 +104,9 @@ from mjx_peg._xp import namespace_of
 from mjx_peg.errors import UsageError
 from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH
 
+# m: the hole's estimated entrance over the goal, along the goal's z (the goal is the table top)
+ENTRANCE_HEIGHT = HOLE_DEPTH - GOAL_HEIGHT
+
 
 @dataclasses.dataclass(frozen=True)
 class SearchConfig:
@@ -251,7 +254,7 @@ def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None
         k_cop = k_cop * (1.0 + sigma * (config.spiral_centre - 1.0))
         axial = axial * (1.0 + sigma * (config.spiral_axial - 1.0))
     if config.insert_axial != 1.0 and height is not None:
-        depth = (HOLE_DEPTH - GOAL_HEIGHT) - height  # below the hole's estimated entrance
+        depth = ENTRANCE_HEIGHT - height  # below the hole's estimated entrance
         b = xp.clip((depth - config.insert_depth) / config.insert_ramp, 0.0, 1.0)[..., None]
         axial = axial * (1.0 + b * (config.insert_axial - 1.0))
     lateral = dy[..., :2] * (1.0 - g * (1.0 - c_lat))
@@ -284,7 +287,7 @@ def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, 
     xp = namespace_of(rotation, wrench)
     height = _height_over_goal(tcp_pos, goal_pos, goal_rot)
     g = resting_gate(config, wrench)[..., None]
-    inside = (height < (HOLE_DEPTH - GOAL_HEIGHT - config.align_depth))[..., None]  # entrance
+    inside = (height < (ENTRANCE_HEIGHT - config.align_depth))[..., None]
     step = (dt * config.align_rate) * g * wrench[..., 3:]
     tilt = rotation[..., :2] + xp.where(inside, step[..., :2], 0.0)
     norm = xp.linalg.vector_norm(tilt, axis=-1, keepdims=True)
