@@ -83,13 +83,15 @@ against its walls' friction at that press, 10-20 mm/s; in `paper-small`'s Q2 (ti
 12 deg) that is most of the time to insert (a trial at the median: 0.6 s to the entrance, 0.5 s
 to turn with the hole, 1.7 s for the last 27 mm). Past the depth d_i (35 mm) below the
 estimated entrance the peg is in the hole whatever the height error (at most 8 mm in the
-paper's grids, 9.6 mm at 60 mm) and has turned with it (the alignment starts at d_a, 20 mm);
+paper's grids, 9.6 mm at 60 mm) and has turned with it (the alignment starts at d_a, 15-20 mm);
 over the next d_r (15 mm) the axial compliance falls to kappa_i C_zz (0.5). Earlier or stiffer,
 the press wedges pegs not yet turned with the hole into protective stops. Measured on the
 1,000-trial subset of `paper-small` (`policies/paper`; docs/spiral_timing.md, "The insertion
 press"): the same success per quarter (99.6 / 96.8 / 97.2 / 96.8 %) in 1.57 / 2.90 / 3.17 /
 4.43 s against 1.86 / 3.66 / 3.84 / 5.33 s, 3 protective stops as before, the sensed peak's p99
-132 N (131). `SKILLS["spiral"]` has it.
+132 N (131). `SKILLS["spiral"]` has it, and starts the alignment's tilt at d_a = 15 mm: on the
+same subset Q2 and Q4 take 2.75 / 4.27 s (2.90 / 4.43 s at 20 mm) and one trial of 1,000 is
+lost; at 12 mm 2.70 / 4.19 s and 4 lost (docs/spiral_timing.md, "The alignment's depth").
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
@@ -195,6 +197,7 @@ SKILLS = {
     "spiral": SearchConfig(
         centre_gain=1.0,
         align_rate=1.0,
+        align_depth=0.015,
         spiral_speed=0.03,
         movement_s=1.3,
         movement_cruise=0.5,
