@@ -197,7 +197,7 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
     spiral = search.skill_search("align").replace(
-        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5, insert_axial=0.5
+        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5, insert_axial=0.5, align_depth=0.015
     )
     assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
