@@ -91,7 +91,9 @@ press"): the same success per quarter (99.6 / 96.8 / 97.2 / 96.8 %) in 1.57 / 2.
 4.43 s against 1.86 / 3.66 / 3.84 / 5.33 s, 3 protective stops as before, the sensed peak's p99
 132 N (131). `SKILLS["spiral"]` has it, and starts the alignment's tilt at d_a = 15 mm: on the
 same subset Q2 and Q4 take 2.75 / 4.27 s (2.90 / 4.43 s at 20 mm) and one trial of 1,000 is
-lost; at 12 mm 2.70 / 4.19 s and 4 lost (docs/spiral_timing.md, "The alignment's depth").
+lost; at 12 mm 2.70 / 4.19 s and 4 lost (docs/spiral_timing.md, "The alignment's depth"). Where
+the peg is shallower than the tcp's depth below the estimated entrance says (the flange model's
+tilted peg, 60 mm's height errors of up to 9.6 mm), the earlier tilt wedges more pegs.
 
 Written over the array-API namespace of the inputs, batched over leading dimensions, like the
 rest of `skill/`; it imports neither numpy nor jax.
