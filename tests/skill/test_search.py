@@ -174,6 +174,39 @@ def test_spiral_offset_moves_the_goal_with_a_lighter_press_and_a_stiffer_tip():
     np.testing.assert_array_equal(out[:, 3:], dy[:, 3:])
 
 
+def test_a_search_past_its_budget_stops_and_withdraws_the_peg():
+    """Past tau_b of resting the resting time runs with the clock, pressed or not; the spiral
+    stays where it stopped and over T_w the goal's axial offset blends to h_w above the hole's
+    estimated entrance (80 mm over the goal); before tau_b nothing differs from no budget."""
+    config = SearchConfig(spiral_speed=0.01, spiral_wait=0.5, search_budget=4.0, withdraw_s=0.5,
+                          withdraw_height=0.02)  # fmt: skip
+    endless = config.replace(search_budget=math.inf)
+    dt, height = 0.002, np.array([0.081, 0.081])
+    free = np.zeros((2, 6))
+    before = np.array([[3.0, 0.081, 1.0], [4.0, 0.081, 1.0]])  # row 1 has spent its budget
+    after = search.spiral_state(config, before, free, *_over_goal(height), dt)
+    np.testing.assert_array_equal(after[:, 0], [3.0, 4.0 + dt])  # lifted: only row 1 runs
+    np.testing.assert_array_equal(
+        search.spiral_state(endless, before, free, *_over_goal(height), dt)[:, 0], [3.0, 4.0]
+    )
+    dy = RNG.normal(0.0, 1e-3, (4, 6))
+    wrench = _pressed_face(np.zeros((4, 2)), np.full(4, 30.0))
+    spiral = np.array([[3.0, 0.08, 1.0], [4.0, 0.08, 1.0], [4.25, 0.08, 1.0], [9.0, 0.08, 1.0]])
+    out = search.searched_offset(config, dy, wrench, None, spiral)
+    np.testing.assert_array_equal(out[0], search.searched_offset(endless, dy, wrench, None,
+                                                                  spiral)[0])  # fmt: skip
+    # pressed at 30 N the tip follows the goal (c_s = 0): the lateral offset is the spiral's,
+    # stopped at tau_b
+    stopped = search.spiral_path(config, np.array([3.0, 4.0, 4.0, 4.0]))
+    np.testing.assert_allclose(out[:, :2], stopped, atol=1e-15)
+    assert np.linalg.norm(stopped[1] - search.spiral_path(config, 9.0)) > 0.005
+    lift = -(0.08 + 0.02)
+    pressed = 2.0 * dy[:, 2]  # the spiral's lighter press (kappa = 2)
+    np.testing.assert_allclose(out[:, 2], pressed + np.array([0.0, 0.0, 0.5, 1.0])
+                               * (lift - pressed), atol=1e-15)  # fmt: skip
+    np.testing.assert_array_equal(out[:, 3:], dy[:, 3:])
+
+
 def test_insertion_press_stiffens_the_axial_compliance_deep_in_the_hole():
     """dy_z times 1 + b (kappa_i - 1), b rising from 0 at d_i below the estimated entrance (80 mm
     over the goal) to 1 at d_i + d_r; every other component, and the offset without a height,
@@ -197,7 +230,12 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert search.skill_search("search").active
     assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
     spiral = search.skill_search("align").replace(
-        spiral_speed=0.03, movement_s=1.3, movement_cruise=0.5, insert_axial=0.5, align_depth=0.015
+        spiral_speed=0.03,
+        movement_s=1.3,
+        movement_cruise=0.5,
+        insert_axial=0.5,
+        align_depth=0.015,
+        search_budget=45.0,
     )
     assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_search("paper")
@@ -231,7 +269,7 @@ def test_numpy_and_jax_agree(x64):
 
     config = SearchConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
                           spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
-                          insert_depth=0.005)  # fmt: skip
+                          insert_depth=0.005, search_budget=10.0)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
     wrench = wrench + RNG.normal(0.0, 0.5, wrench.shape)
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
@@ -276,6 +314,10 @@ def test_bad_config_and_unknown_skill_are_one_clear_error():
         SearchConfig(insert_axial=0.0)
     with pytest.raises(UsageError, match="insert_ramp"):
         SearchConfig(insert_ramp=-0.01)
+    with pytest.raises(UsageError, match="search_budget"):
+        SearchConfig(search_budget=0.0)
+    with pytest.raises(UsageError, match="withdraw_s"):
+        SearchConfig(withdraw_s=0.0)
     with pytest.raises(UsageError, match="paper, search"):
         search.skill_search("wiggle")
 
