@@ -2,7 +2,7 @@
 against what the compliance sees (docs/rim_chatter.md).
 
     python experiments/chatter_trace.py --eval docs/eval/paper_spiral_50mm_small_board \\
-        --range 71 --trial 4 [--contacts-at 59.0] [--npz F]
+        --range 71 --trial 4 [--contacts-at 59.0] [--search 'NAME=V;...'] [--npz F]
 
 The chatter metric (`engines.trial.chatter_of`) is the mean |F_k - F_(k-1)| of the true axial
 contact force over the trial's last second. Printed for that second: the metric; the periods
@@ -20,6 +20,7 @@ import argparse
 
 import mujoco
 import numpy as np
+from contact import search_config  # experiments/contact.py
 
 from mjx_peg.engines import mujoco as engine
 from mjx_peg.engines.trial import as_controller_params
@@ -56,6 +57,12 @@ def replay(args) -> tuple[dict, dict]:
                              f"{force[0]:.1f} N")  # fmt: skip
             contacts.append((step * config.timestep, float(lane.state.axial[0]), found))
 
+    # the evaluation's skill, with some constants changed
+    config = config.replace(search=search_config(config.search, args.search))
+    if args.search:
+        print("search constants:", "; ".join(
+            f"{k.split('=')[0].strip()}={getattr(config.search, k.split('=')[0].strip())}"
+            for k in args.search.split(";") if k))  # fmt: skip
     params = as_controller_params(params, 1)
     engine.run_trials(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
     trace = {k: np.asarray(v) for k, v in trace.items()}
@@ -93,6 +100,7 @@ def main(argv=None) -> None:
     p.add_argument("--range", type=int, required=True)
     p.add_argument("--trial", default="failure", help="index, failure or success")
     p.add_argument("--contacts-at", type=float, help="s: list the contacts from here on")
+    p.add_argument("--search", default="", help="SearchConfig constants changed, 'NAME=V;...'")
     p.add_argument("--npz", help="write the per-period trace here")
     args = p.parse_args(argv)
     trace, contacts = replay(args)

@@ -93,9 +93,11 @@ def changed(vector: np.ndarray, text: str) -> np.ndarray:
     return out
 
 
-def search_config(skill: str, changes: str):
-    """The SearchConfig of `skill` with the constants of 'NAME=V;...' changed."""
-    return skill_search(skill).replace(**{
+def search_config(skill, changes: str):
+    """The SearchConfig of `skill` (a name or a SearchConfig) with the constants of 'NAME=V;...'
+    changed."""
+    search = skill_search(skill) if isinstance(skill, str) else skill
+    return search.replace(**{
         k.strip(): float(v) for k, v in (item.split("=") for item in changes.split(";") if item)
     })  # fmt: skip
 

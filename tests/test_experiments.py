@@ -176,8 +176,10 @@ def test_grid_subset_runs_an_evaluations_own_trials_per_quarter(tmp_path):
 def test_chatter_trace_replays_a_grid_trial_and_reports_its_last_second(tmp_path):
     out = run_script("experiments/chatter_trace.py", "--eval",
                      "docs/eval/paper_spiral_50mm_small_board", "--range", 0, "--trial", 0,
-                     "--contacts-at", 0.7, "--npz", tmp_path / "t.npz")  # fmt: skip
+                     "--contacts-at", 0.7, "--search", "search_budget=inf",
+                     "--npz", tmp_path / "t.npz")  # fmt: skip
     assert "range 0 (±0.8 mm / ±1.2 deg) trial 0" in out and "recorded: success" in out
+    assert "search constants: search_budget=inf" in out
     assert "chatter (mean |dF|)" in out and "the compliance's axial force" in out
     assert len(re.findall(r"^  0\.\d{3} s  axial", out, flags=re.M)) == 40  # the contacts listed
     with np.load(tmp_path / "t.npz") as trace:

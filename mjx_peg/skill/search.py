@@ -6,8 +6,8 @@ A peg that lands on the rim stays there: static friction holds its tip until the
 tracking force passes mu N, i.e. until a lateral goal offset s passes mu N (1 / K_e + C_xx)
 (docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Six
 elements, each off by default, change that, the first five while the peg rests on something,
-the last once it is deep in the hole. In the goal frame (the tool's orientation at the goal:
-z points down, into the hole):
+the sixth once it is deep in the hole; a budget ends the spiral. In the goal frame (the tool's
+orientation at the goal: z points down, into the hole):
 
     gate        g = clip((N - f_on) / (f_full - f_on), 0, 1),  N = -F_z  (the board pushing up)
     press       ydd_z <= a_p                         the axial command, and so the press
@@ -24,6 +24,9 @@ z points down, into the hole):
     insertion   dy_z <- (1 + b (kappa_i - 1)) dy_z,  b = clip((d - d_i) / d_r, 0, 1), d the
                 tcp's depth below the hole's estimated entrance: a stiffer press once the peg
                 is deep in the hole (no gate)
+    budget      from tau = tau_b on: s(tau) -> s(tau_b), tau += dt whether resting or not, and
+                dy_z <- dy_z + w (-(H + h_w) - dy_z),  w = clip((tau - tau_b) / T_w, 0, 1),
+                H the estimated entrance over the goal: the peg withdrawn h_w above it
 
 The centring is the paper's moment-to-shift coupling (C[0,4], C[1,3]) divided by the axial
 force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from
@@ -345,7 +348,8 @@ def spiral_state(config: SearchConfig, spiral, wrench, tcp_pos, goal_pos, goal_r
                dropping into the hole (millimetres in a few tenths of a second) does not
         rest   the peg rests: pressed once, and h not e below h_r (checked before h_r moves)
         tau    += dt g while it rests: the resting time, which runs the spiral (`spiral_path`);
-               it stops while the peg drops in, so the goal keeps the offset that found the hole
+               it stops while the peg drops in, so the goal keeps the offset that found the hole;
+               from tau_b (`search_budget`) on += dt: the search has given up (the withdrawal)
         sigma  the spiralling phase in [0, 1]: towards 1 at dt / T_r a period while it rests
                past t_w, else towards 0 (a ramp: the lighter press lifts the goal by
                (kappa - 1) C_zz N, ~40 mm, so a switch at once would lift the peg off)
