@@ -20,7 +20,7 @@ import argparse
 
 import mujoco
 import numpy as np
-from contact import search_config  # experiments/contact.py
+from contact import search_changes  # experiments/contact.py
 
 from mjx_peg.engines import mujoco as engine
 from mjx_peg.engines.trial import as_controller_params
@@ -57,12 +57,10 @@ def replay(args) -> tuple[dict, dict]:
                              f"{force[0]:.1f} N")  # fmt: skip
             contacts.append((step * config.timestep, float(lane.state.axial[0]), found))
 
-    # the evaluation's skill, with some constants changed
-    config = config.replace(search=search_config(config.search, args.search))
-    if args.search:
-        print("search constants:", "; ".join(
-            f"{k.split('=')[0].strip()}={getattr(config.search, k.split('=')[0].strip())}"
-            for k in args.search.split(";") if k))  # fmt: skip
+    changes = search_changes(args.search)  # the evaluation's skill, with some constants changed
+    config = config.replace(search=config.search.replace(**changes))
+    if changes:
+        print("search constants:", "; ".join(f"{k}={v}" for k, v in changes.items()))
     params = as_controller_params(params, 1)
     engine.run_trials(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
     trace = {k: np.asarray(v) for k, v in trace.items()}

@@ -93,13 +93,17 @@ def changed(vector: np.ndarray, text: str) -> np.ndarray:
     return out
 
 
+def search_changes(changes: str) -> dict[str, float]:
+    """{NAME: V} of 'NAME=V;...' (SearchConfig constants)."""
+    pairs = (item.split("=") for item in changes.split(";") if item)
+    return {k.strip(): float(v) for k, v in pairs}
+
+
 def search_config(skill, changes: str):
     """The SearchConfig of `skill` (a name or a SearchConfig) with the constants of 'NAME=V;...'
     changed."""
     search = skill_search(skill) if isinstance(skill, str) else skill
-    return search.replace(**{
-        k.strip(): float(v) for k, v in (item.split("=") for item in changes.split(";") if item)
-    })  # fmt: skip
+    return search.replace(**search_changes(changes))
 
 
 def main(argv=None) -> None:
