@@ -3,6 +3,7 @@
     python train.py                                  # quick preset, CPU, under 10 minutes
     python train.py --preset paper --out runs/paper  # the paper's training conditions
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
+    python train.py --preset transfer --init-from paper --out runs/transfer  # policies/paper
     python train.py --preset paper --out runs/paper  # after a crash or kill: resumes
 
 Bad input exits with status 2 and one line on stderr, before --out is touched. --force moves an
@@ -46,7 +47,10 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--time-limit", type=cli.TIME_LIMIT_S, help="per training trial")
     p.add_argument(
-        "--init-from", type=cli.nonempty_path, help="run directory whose networks start this run"
+        "--init-from",
+        type=cli.nonempty_path,
+        help="the run (or shipped policy, e.g. paper) whose networks start this run: its last "
+        "checkpoint, or an exported policy's mean path with a fresh critic",
     )
     p.add_argument(
         "--force",
@@ -95,6 +99,7 @@ def resolve_config(args):
     from mjx_peg.learn.config import PRESETS
     from mjx_peg.learn.run_dir import RunDir
     from mjx_peg.policy.export import load_policy
+    from mjx_peg.policy.shipped import resolve_policy
 
     overrides = {
         "engine": args.engine,
@@ -112,6 +117,7 @@ def resolve_config(args):
     if args.preset == "transfer" and not config.init_from:
         raise UsageError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:
+        config = config.replace(init_from=resolve_policy(config.init_from, "--init-from", False))
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
         source = RunDir(config.init_from).read_config().action_map
         if args.action_map not in (None, source):

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import jax
 import jax.experimental.multihost_utils
+import jax.numpy as jnp
 import numpy as np
 
 from mjx_peg import cli
@@ -25,9 +26,9 @@ from mjx_peg.learn import checkpoints, ppo
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
-from mjx_peg.learn.env import InsertionEnv
+from mjx_peg.learn.env import PRIVILEGED_SIZE, InsertionEnv
 from mjx_peg.learn.run_dir import RunDir
-from mjx_peg.policy.export import save_policy
+from mjx_peg.policy.export import PolicyError, load_policy, save_policy
 
 
 @dataclass(frozen=True)
@@ -55,24 +56,71 @@ def _save(saved: Checkpoints, state: ppo.TrainingState) -> None:
 
 
 def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
-    """Start from another run's networks and observation statistics (fresh optimizer)."""
+    """Start from another run's networks and observation statistics (fresh optimizer): its last
+    Orbax checkpoint, or, where it has none (a shipped policy under policies/), its exported
+    policy (`_from_export`)."""
     source = RunDir(config.init_from)
     if not source.path.is_dir():
         raise UsageError(f"--init-from {source.path} is not a directory")
     other = source.read_config()
-    if other.policy_hidden != config.policy_hidden or other.value_hidden != config.value_hidden:
+    has_checkpoint = checkpoints.has_steps(source.checkpoint_dir)
+    value_hidden = other.value_hidden if has_checkpoint else config.value_hidden
+    if other.policy_hidden != config.policy_hidden or value_hidden != config.value_hidden:
         raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
             f"this run {config.policy_hidden}/{config.value_hidden}"
         )
+    if not has_checkpoint:
+        return _from_export(config, template, source)
     with source.checkpoints() as saved:
-        if saved.latest_step() is None:
-            raise UsageError(f"--init-from {source.path} holds no checkpoint")
         restored = saved.restore(ppo.init_state(other, ppo.make_networks(other)))
     return template.replace(
         params=restored.params,
         normalizer_params=restored.normalizer_params,
         optimizer_state=ppo.make_optimizer(config).init(restored.params),
+    )
+
+
+def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDir):
+    """`template` with an exported policy's mean path and observation statistics.
+
+    policy.npz keeps what acting needs: the mean path's layers and the policy input's mean and
+    std. The rest starts as a fresh run's does: the exploration std (`config`'s), the critic, and
+    the statistics of the critic's eight privileged features (mean 0, std 1: they are scaled to
+    O(1) by construction, observation.privileged). The statistics count the source's trials, as
+    its checkpoint's would, so this run's trials move them as they would have moved those."""
+    try:
+        policy = load_policy(source.path)
+    except PolicyError as e:
+        raise UsageError(f"--init-from {source.path} holds no checkpoint, and {e}") from None
+    *hidden, head = [{"kernel": jnp.asarray(k), "bias": jnp.asarray(b)} for k, b in policy.layers]
+    tree = {
+        **template.params.policy["params"],
+        "MLP_0": {f"hidden_{i}": layer for i, layer in enumerate(hidden)},
+        "Dense_0": head,
+    }
+    params = template.params.replace(policy={"params": tree})
+    extra = PRIVILEGED_SIZE - policy.obs_mean.size
+    mean = {
+        "state": policy.obs_mean,
+        "privileged_state": np.concatenate([policy.obs_mean, np.zeros(extra, np.float32)]),
+    }
+    std = {
+        "state": policy.obs_std,
+        "privileged_state": np.concatenate([policy.obs_std, np.ones(extra, np.float32)]),
+    }
+    count = int(policy.manifest["trials"])
+    norm = template.normalizer_params
+    norm = norm.replace(
+        count=type(norm.count)(hi=jnp.uint32(count >> 32), lo=jnp.uint32(count & 0xFFFFFFFF)),
+        mean={k: jnp.asarray(v, jnp.float32) for k, v in mean.items()},
+        std={k: jnp.asarray(v, jnp.float32) for k, v in std.items()},
+        summed_variance={k: jnp.asarray(v**2 * count, jnp.float32) for k, v in std.items()},
+    )
+    return template.replace(
+        params=params,
+        normalizer_params=norm,
+        optimizer_state=ppo.make_optimizer(config).init(params),
     )
 
 

@@ -24,12 +24,12 @@ def shipped_names() -> list[str]:
     return sorted(p.name for p in SHIPPED_DIR.iterdir() if (p / "manifest.json").is_file())
 
 
-def resolve_policy(policy) -> str:
-    """`policy` as a path to load ("baseline" stays as it is): an existing path as given, else
-    the shipped policy of that name (relative to the working directory where it lies below it).
-    UsageError (one line, naming the shipped ones) if it is neither."""
+def resolve_policy(policy, flag: str = "--policy", baseline: bool = True) -> str:
+    """`policy` as a path to load ("baseline" stays as it is where `baseline`): an existing path
+    as given, else the shipped policy of that name (relative to the working directory where it
+    lies below it). UsageError (one line naming `flag` and the shipped ones) if it is neither."""
     text = str(policy)
-    if text == "baseline" or Path(text).exists():
+    if (baseline and text == "baseline") or Path(text).exists():
         return text
     if text in shipped_names():
         path = SHIPPED_DIR / text
@@ -37,8 +37,8 @@ def resolve_policy(policy) -> str:
         return path.as_posix() if relative.startswith("..") else relative
     names = ", ".join(shipped_names()) or f"none: {SHIPPED_DIR} is absent"
     raise UsageError(
-        f"--policy {text}: no such run directory, and no shipped policy of that name "
-        f"(shipped: {names}; or baseline)"
+        f"{flag} {text}: no such run directory, and no shipped policy of that name "
+        f"(shipped: {names}{'; or baseline' if baseline else ''})"
     )
 
 

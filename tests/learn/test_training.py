@@ -127,6 +127,37 @@ def test_prior_starts_at_the_baseline():
         assert np.all(vec[:, 2] > 1.2e-3)  # lateral compliance near the baseline's 1.8e-3 m/N
 
 
+def test_init_from_a_shipped_policy_starts_at_its_actions():
+    """A run without checkpoints (policies/paper) starts from its exported mean path and
+    observation statistics, counted as its trials; the exploration std and the critic fresh."""
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.learn.trainer import _load_init
+
+    config = cli.resolve_config(
+        cli.parser().parse_args(["--preset", "transfer", "--init-from", "paper"])
+    )
+    assert Path(config.init_from).resolve() == ROOT / "policies" / "paper"
+    template = init_state(config, make_networks(config))
+    state = _load_init(config, template)
+    shipped = load_policy("paper")
+    obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
+    action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
+    assert np.max(np.abs(action - shipped.act(obs))) < 1e-5
+    norm = state.normalizer_params
+    assert int(norm.count.lo) == shipped.manifest["trials"] == 8192
+    critic_mean = np.asarray(norm.mean["privileged_state"])
+    np.testing.assert_allclose(critic_mean[:8], shipped.obs_mean, rtol=1e-6)
+    np.testing.assert_array_equal(critic_mean[8:], 0.0)
+    np.testing.assert_allclose(np.asarray(norm.std["privileged_state"])[8:], 1.0)
+    fresh, loaded = template.params, state.params
+    assert jax.tree.all(jax.tree.map(np.array_equal, fresh.value, loaded.value))
+    np.testing.assert_array_equal(
+        fresh.policy["params"]["std_logparam"]["log_value"],
+        loaded.policy["params"]["std_logparam"]["log_value"],
+    )
+
+
 @pytest.mark.slow
 def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path):
     reference, _ = tiny_run
@@ -195,6 +226,7 @@ def test_cli_bad_input_is_one_line(tmp_path, tiny_run):
         ["--trials", "-5"],
         ["--preset", "transfer", "--init-from", str(tmp_path)],
         ["--preset", "transfer", "--init-from", str(broken)],
+        ["--preset", "transfer", "--init-from", "baseline"],
         ["--out", str(reference), *TINY_ARGS],  # a finished run, no --force
     ]
     for args in cases:
