@@ -102,26 +102,40 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     assert search.aligned_rotation(SearchConfig(), far, wrench, *_over_goal(height), 1.0) is far
 
 
-def test_spiral_path_runs_an_archimedean_spiral_at_its_speed_within_its_radius():
-    config = SearchConfig(spiral_speed=0.01, spiral_pitch=0.006, spiral_radius=0.012,
-                          spiral_wait=1.0)  # fmt: skip
-    tau = np.arange(0.0, 20.0, 1e-3)
+def test_spiral_path_runs_out_and_back_between_its_turns_at_its_speed_within_its_radius():
+    p, v, big_r = 0.006, 0.01, 0.012
+    config = SearchConfig(spiral_speed=v, spiral_pitch=p, spiral_radius=big_r, spiral_wait=1.0)
+    t_out, t_across = math.pi * big_r**2 / (p * v), math.pi * big_r / v  # 7.5 s, 3.8 s
+    period = 2 * t_out + t_across
+    tau = np.arange(0.0, 1.0 + period + 1.0, 1e-3)
     s = search.spiral_path(config, tau)
     r = np.linalg.norm(s, axis=-1)
-    np.testing.assert_array_equal(s[tau <= 1.0], 0.0)  # it waits t_w
-    t_full = math.pi * 0.012**2 / (0.006 * 0.01)  # 7.5 s of spiral to reach R
-    growing = (tau > 1.0) & (tau < 1.0 + t_full)
-    np.testing.assert_allclose(r[growing], np.sqrt(0.006 * 0.01 * (tau[growing] - 1) / math.pi))
-    assert r.max() == pytest.approx(0.012) and np.all(r <= 0.012 + 1e-15)
-    # one turn widens it by the pitch: the angle at r is 2 pi r / p
-    phi = np.unwrap(np.arctan2(s[growing, 1], s[growing, 0]))
-    np.testing.assert_allclose(phi - phi[0], 2 * math.pi * (r[growing] - r[growing][0]) / 0.006,
+    t = tau - 1.0
+    np.testing.assert_array_equal(s[t <= 0.0], 0.0)  # it waits t_w
+    assert r.max() == pytest.approx(big_r) and np.all(r <= big_r + 1e-15)
+    out, across = (t > 0) & (t < t_out), (t > t_out) & (t < t_out + t_across)
+    back = (t > t_out + t_across) & (t < period)
+    np.testing.assert_allclose(r[out], np.sqrt(p * v * t[out] / math.pi))
+    np.testing.assert_allclose(r[across], big_r)
+    np.testing.assert_allclose(r[back], np.sqrt(p * v * (period - t[back]) / math.pi), atol=1e-12)
+    # the angle at r: 2 pi r / p out (one turn widens it by the pitch), and back in on the same
+    # arm turned by half a turn, half the pitch from the outward turns at every angle
+    moving = t > 0
+    phi = np.unwrap(np.arctan2(s[moving, 1], s[moving, 0]))
+    phi += 2 * math.pi * r[moving][0] / p - phi[0]
+    np.testing.assert_allclose(phi[out[moving]], 2 * math.pi * r[out] / p, atol=1e-6)
+    np.testing.assert_allclose(r[back], p * (phi[back[moving]] - math.pi) / (2 * math.pi),
                                atol=1e-6)  # fmt: skip
-    # round its turns at v (the radius grows at p v / (2 pi r) besides), growing or circling
-    moving = tau > 1.01
-    angle = np.unwrap(np.arctan2(s[moving, 1], s[moving, 0]))
-    tangential = 0.5 * (r[moving][1:] + r[moving][:-1]) * np.diff(angle) / 1e-3
-    np.testing.assert_allclose(tangential, 0.01, rtol=1e-3)
+    # round its turns at v (the radius changes at p v / (2 pi r) besides), out, across and back
+    arm = np.select([out, across, back], [1, 2, 3], 0) * (r > 0.001)  # away from the centre
+    steady = (arm[1:] == arm[:-1]) & (arm[1:] > 0)  # both ends on one arm
+    angle = np.unwrap(np.arctan2(s[:, 1], s[:, 0]))
+    tangential = 0.5 * (r[1:] + r[:-1]) * np.abs(np.diff(angle)) / 1e-3
+    np.testing.assert_allclose(tangential[steady], v, rtol=1e-3)
+    # no jump where the arms meet, and over again after a period
+    assert np.max(np.linalg.norm(np.diff(s, axis=0), axis=-1)) < 3e-4
+    np.testing.assert_allclose(search.spiral_path(config, tau[moving] + period), s[moving],
+                               atol=1e-9)  # fmt: skip
 
 
 def test_spiral_state_runs_while_the_peg_rests_and_stops_once_it_drops_in():
