@@ -72,11 +72,10 @@ circle at R frees the pegs whose hole is narrower than the pitch's gaps: on 300 
 +-8 mm / +-6 deg (seed 1, `policies/paper`), triangles 65.7 -> 73.7 % (30 gained, 6 lost,
 McNemar p = 7e-5), 25 mm circles and squares at +-4 mm / +-6 deg 90.3 -> 93.0 % (12 / 4,
 p = 0.08); at 50 mm it changes little (docs/spiral_timing.md, "The return"). Its timing (t_w,
-T_r, v; from
-1 s, 1 s, 20 mm/s) is the fastest that kept the success on a 1,000-trial subset of `paper-small`
-(docs/spiral_timing.md). `SKILLS["spiral"]` is the alignment and the spiral, and moves faster:
-its DMP's movement lasts T = 1.3 s instead of the trial's 2 s (`movement_s`) and cruises half of
-it at a constant speed instead of the minimum-jerk profile (`movement_cruise`,
+T_r, v; from 1 s, 1 s, 20 mm/s) is the fastest that kept the success on a 1,000-trial subset of
+`paper-small` (docs/spiral_timing.md). `SKILLS["spiral"]` is the alignment and the spiral, and
+moves faster: its DMP's movement lasts T = 1.3 s instead of the trial's 2 s (`movement_s`) and
+cruises half of it at a constant speed instead of the minimum-jerk profile (`movement_cruise`,
 `dmp.cruise_profile`). With the spiral to free what lands on the rim, the faster approach
 inserts as many pegs; the cruise meets the board 28 % slower than a minimum-jerk profile of the
 same T, so the touchdown stays as gentle as the minimum-jerk 1.75-1.8 s (the sensed peak's p99
