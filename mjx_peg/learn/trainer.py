@@ -63,9 +63,9 @@ def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.Training
     if not source.path.is_dir():
         raise UsageError(f"--init-from {source.path} is not a directory")
     other = source.read_config()
-    has_checkpoint = checkpoints.has_steps(source.checkpoint_dir)
-    value_hidden = other.value_hidden if has_checkpoint else config.value_hidden
-    if other.policy_hidden != config.policy_hidden or value_hidden != config.value_hidden:
+    has_checkpoint = checkpoints.has_steps(source.checkpoint_dir)  # else its critic is not used
+    critic_differs = has_checkpoint and other.value_hidden != config.value_hidden
+    if other.policy_hidden != config.policy_hidden or critic_differs:
         raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
             f"this run {config.policy_hidden}/{config.value_hidden}"
