@@ -144,6 +144,7 @@ class SearchConfig:
     force_full: float = 20.0  # N: f_full, where it is fully open
     align_rate: float = 0.0  # k_a, rad/(N m s): how fast the goal's rotation follows the moment
     align_max: float = 0.35  # rad: a_max, the largest tilt and the largest yaw (20 deg)
+    align_max_yaw: float = 0.0  # rad: the yaw's own bound, where it differs from a_max; 0: a_max
     align_depth: float = 0.02  # m: d_a, the tcp's depth below the estimated entrance
     spiral_speed: float = 0.0  # m/s: v, the spiral's speed round its turns; 0: no spiral
     spiral_pitch: float = 0.01  # m: p, the spiral's pitch, its radius's growth per turn
@@ -170,8 +171,8 @@ class SearchConfig:
     withdraw_s: float = 1.0  # s: T_w, the time the withdrawal takes to blend in
 
     def __post_init__(self):
-        for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_depth",
-                     "spiral_speed", "spiral_wait", "spiral_centre", "entry_depth",
+        for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_max_yaw",
+                     "align_depth", "spiral_speed", "spiral_wait", "spiral_centre", "entry_depth",
                      "movement_s", "insert_depth"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -321,7 +322,8 @@ def _height_over_goal(tcp_pos, goal_pos, goal_rot):
 def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
                      dt: float):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
-    a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) and its yaw each bounded to a_max; from the
+    a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
+    `align_max_yaw`, where set: docs/tilted_hole.md, "The yaw during the spiral"); from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
     force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
     (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a). Zero rate:
@@ -336,7 +338,8 @@ def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, 
     tilt = rotation[..., :2] + xp.where(inside, step[..., :2], 0.0)
     norm = xp.linalg.vector_norm(tilt, axis=-1, keepdims=True)
     tilt = tilt * xp.minimum(1.0, config.align_max / xp.maximum(norm, 1e-12))
-    yaw = xp.clip(rotation[..., 2:] + step[..., 2:], -config.align_max, config.align_max)
+    yaw_max = config.align_max_yaw or config.align_max
+    yaw = xp.clip(rotation[..., 2:] + step[..., 2:], -yaw_max, yaw_max)
     return xp.concat([tilt, yaw], axis=-1)
 
 

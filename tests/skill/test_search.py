@@ -102,6 +102,24 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     assert search.aligned_rotation(SearchConfig(), far, wrench, *_over_goal(height), 1.0) is far
 
 
+def test_alignment_bounds_its_yaw_apart_from_its_tilt_where_told():
+    config = SearchConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
+    wrench = _pressed_face(np.array([[0.01, -0.02]] * 2), np.array([40.0, 40.0]))
+    wrench[:, 5] = [0.4, -0.4]  # the yaw moment of a face dragged off the tcp's axis
+    height = np.full(2, 0.08 - 0.011)  # in the hole: the tilt integrates too
+    start = np.array([[0.29, 0.0, 0.09], [0.0, -0.29, -0.09]])
+    same = search.aligned_rotation(config, start, wrench, *_over_goal(height), 1.0)
+    own = search.aligned_rotation(
+        config.replace(align_max_yaw=0.1), start, wrench, *_over_goal(height), 1.0
+    )
+    np.testing.assert_allclose(same[:, 2], [0.3, -0.3])  # unset: the yaw runs to a_max
+    np.testing.assert_allclose(own[:, 2], [0.1, -0.1])  # set: to its own bound
+    np.testing.assert_array_equal(own[:, :2], same[:, :2])  # the tilt's bound is a_max's
+    assert np.linalg.norm(own[0, :2]) == pytest.approx(0.3)
+    with pytest.raises(UsageError, match="align_max_yaw"):
+        SearchConfig(align_max_yaw=-0.1)
+
+
 def test_spiral_path_runs_out_and_back_between_its_turns_at_its_speed_within_its_radius():
     p, v, big_r = 0.006, 0.01, 0.012
     config = SearchConfig(spiral_speed=v, spiral_pitch=p, spiral_radius=big_r, spiral_wait=1.0)
