@@ -184,3 +184,26 @@ def test_chatter_trace_replays_a_grid_trial_and_reports_its_last_second(tmp_path
     assert len(re.findall(r"^  0\.\d{3} s  axial", out, flags=re.M)) == 40  # the contacts listed
     with np.load(tmp_path / "t.npz") as trace:
         assert trace["tcp"].shape == (trace["axial"].size, 3) and trace["axial"].size > 100
+
+
+def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
+    listed = run_script("experiments/regenerate.py", "--dry-run", "--out", tmp_path).splitlines()
+    names = [line.split(":")[0] for line in listed[:-1]]
+    assert names[:2] == ["train_quick", "ship_quick"]  # shipped before anything runs `quick`
+    assert names[-1] == "g_paper_spiral_50mm_nominal_board"  # the longest last
+    assert len(names) == len(set(names)) == 43
+    compared = names.index("g_transfer_spiral_triangle_small_board")
+    assert names.index("g_paper_spiral_triangle_small_board") < compared
+    assert re.fullmatch(r"43 steps, ~\d+ min here", listed[-1])
+    only = run_script("experiments/regenerate.py", "--dry-run", "--only", "arm_*_125")
+    assert [line.split(":")[0] for line in only.splitlines()[:-1]] == [
+        "arm_circle_125", "arm_square_125"]  # fmt: skip
+    # one real step (zero error: 180 trials, ~6 s on two cores), then the rerun skips it
+    out = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path)
+    assert "[1/1] zero" in out and "done in" in out
+    assert "60/60 succeeded" in (tmp_path / "zero.log").read_text()
+    again = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path)
+    assert "zero: done before, skipped" in again and "[1/" not in again
+    bad = subprocess.run([sys.executable, ROOT / "experiments/regenerate.py", "--only", "nope"],
+                         capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    assert bad.returncode == 2 and bad.stderr.strip() == "--only nope: no step matches"

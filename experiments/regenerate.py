@@ -1,0 +1,225 @@
+"""Regenerate every published number of the shipped skill, one job at a time, niced.
+
+When the trial or the `--skill spiral` changes, every number the README and the guides cite
+from it is rerun: `quick` and `transfer` retrained and re-shipped (`experiments/ship_policy.py`,
+at HEAD), the `--skill spiral` grids under docs/eval/ (`paper-small` at 50 mm, the triangle
+before and after transfer, 25 and 60 mm, the flange model, the baseline), the 500- and 1,500-trial
+contact sets, the paper's skill on the 500, zero error, the sensor and friction variants, the
+simulated arm, vision to action, and the nominal 350-range grid last. `policies/paper` is not
+retrained (`python train.py --preset paper`, ~22 min here, is a decision of its own).
+
+    python experiments/regenerate.py                       # everything, ~105 min on 2 cores
+    python experiments/regenerate.py --dry-run             # the commands, nothing run
+    python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
+    python experiments/regenerate.py --skip-nominal        # all but the 32 min nominal grid
+
+A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME.done and is
+skipped; a grid is removed before its first start only (a stale grid of the skill before would
+otherwise be resumed under the same config), then eval.py resumes it; a training resumes from
+its checkpoints. Logs and CSVs go to OUT (default runs/regenerate); the grids to docs/eval/.
+The steps' durations are those of the last regeneration on this 2-core CPU, for the ETA.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import fnmatch
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+EVAL = "docs/eval"
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    name: str
+    argv: tuple[str, ...]
+    expect_s: float  # its wall time in the last regeneration here (the ETA)
+    fresh: str = ""  # a path removed before the step's first start
+
+
+def steps(out: str, commit: str) -> list[Step]:
+    """Every step, in the order they run (the grids the later ones compare with come first)."""
+    # fmt: off
+    py = sys.executable
+    train = [
+        Step("train_quick", (py, "train.py", "--no-progress"), 370, "runs/quick"),
+        Step("ship_quick", (py, "experiments/ship_policy.py", "runs/quick", "quick", "--commit",
+                            commit, "--command", "python train.py"), 5),
+        Step("train_transfer", (py, "train.py", "--preset", "transfer", "--init-from", "paper",
+                                "--out", "runs/transfer", "--no-progress"), 227,
+             "runs/transfer"),
+        Step("ship_transfer", (py, "experiments/ship_policy.py", "runs/transfer", "transfer",
+                               "--commit", commit, "--command", "python train.py --preset "
+                               "transfer --init-from paper --out runs/transfer"), 5),
+    ]
+    small = ("--grid", "paper-small")
+
+    def grid(name, expect_s, *args):
+        argv = (py, "eval.py", "--out", f"{EVAL}/{name}", "--no-progress", *args)
+        return Step(f"g_{name}", argv, expect_s, f"{EVAL}/{name}")
+
+    paper = ("--policy", "paper", "--skill", "spiral")
+    per20 = (*small, "--trials", "20")
+    better = ("--alternative", "greater")
+    grids = [
+        grid("paper_spiral_50mm_small_board", 194, *paper, *small, "--compare",
+             f"{EVAL}/paper_align_50mm_small_board", *better),
+        grid("paper_spiral_triangle_small_board", 228, *paper, *per20, "--shape", "triangle",
+             "--paper", "triangle", "--compare", f"{EVAL}/paper_align_triangle_small_board",
+             *better),
+        grid("transfer_spiral_triangle_small_board", 183, "--policy", "transfer", *per20,
+             "--shape", "triangle", "--paper", "transfer", "--compare",
+             f"{EVAL}/paper_spiral_triangle_small_board", *better),
+        grid("paper_spiral_25mm_small_board", 149, *paper, *per20, "--size", "25", "--paper",
+             "25mm", "--compare", f"{EVAL}/paper_align_25mm_small_board", *better),
+        grid("paper_spiral_60mm_small_board", 108, *paper, *per20, "--size", "60", "--paper",
+             "60mm", "--compare", f"{EVAL}/paper_align_60mm_small_board", *better),
+        grid("paper_spiral_50mm_small_flange", 241, *paper, *per20, "--grasp-model", "flange",
+             "--paper", "nominal", "--compare", f"{EVAL}/paper_align_50mm_small_flange",
+             *better),
+        grid("baseline_spiral_50mm_small_board", 225, "--policy", "baseline", "--skill",
+             "spiral", *small, "--compare", f"{EVAL}/paper_spiral_50mm_small_board",
+             "--alternative", "less"),
+    ]
+
+    def contact(name, expect_s, *args):
+        argv = (py, "experiments/contact.py", *args, "--csv", f"{out}/{name}.csv")
+        return Step(name, argv, expect_s)
+
+    base = ("--skill", "spiral")
+    large = ("--linear-mm", "8", "--angular-deg", "12")
+    more = ("--trials", "1500", "--seed", "2")
+    sets = [
+        contact("paper46", 21, *paper),
+        contact("base46", 79, *base),
+        contact("quick46", 44, "--policy", "quick"),
+        contact("base46_paper_skill", 170, "--skill", "paper"),
+        contact("quick_paper_skill46", 146, "--policy", "quick-paper-skill", "--skill", "paper"),
+        contact("paper812", 95, *paper, *large),
+        contact("base812", 108, *base, *large),
+        contact("quick812", 105, "--policy", "quick", *large),
+        contact("quick812s2", 176, "--policy", "quick", *large, *more),
+        contact("base812s2", 194, *base, *large, *more),
+        contact("paper812s2", 180, *paper, *large, *more),
+        contact("paper46s2", 128, *paper, *more),
+        contact("base46s2", 129, *base, *more),
+        contact("tri_transfer", 115, "--policy", "transfer", "--shapes", "triangle"),
+        contact("tri_paper", 123, *paper, "--shapes", "triangle"),
+        contact("tri_base", 116, *base, "--shapes", "triangle"),
+        *(contact(f"sensor_{v}", 30, *paper, "--sensor", v)
+          for v in ("nofilter", "cutoff0.5", "cutoff2", "delay+2", "noise2")),
+        *(contact(f"friction_{f}", 85, *paper, "--friction", f) for f in ("0.2", "0.9")),
+    ]
+    zero = Step("zero", (py, "experiments/failures.py", *paper, "--linear-mm", "0",
+                         "--angular-deg", "0", "--shape", "circle,square,triangle",
+                         "--trials", "60", "--seed", "7"), 6)
+    arm = []
+    for shape in ("circle", "square"):
+        for variant, extra in (("500", ()), ("lag", ("--actuator-lag-ms", "5")),
+                               ("125", ("--command-hz", "125"))):
+            name = f"arm_{shape}_{variant}"
+            argv = (py, "-m", "mjx_peg.robot", *paper, "--shape", shape, "--linear-mm", "4",
+                    "--angular-deg", "6", "--trials", "25", "--seed", "0", *extra, "--out",
+                    f"{out}/{name}")
+            arm.append(Step(name, argv, 35, f"{out}/{name}"))
+    vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
+                             f"{out}/vision_act"), 310, f"{out}/vision_act")
+    nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
+    return [*train, *grids, *sets, zero, *arm, vision, nominal]
+    # fmt: on
+
+
+def _head() -> str:
+    return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True, check=True).stdout.strip()  # fmt: skip
+
+
+def _dirty() -> list[str]:
+    """The changed files (against HEAD) of what trains and runs the trials."""
+    paths = ["mjx_peg", "train.py", "eval.py", "scenes"]
+    got = subprocess.run(["git", "status", "--porcelain", "--", *paths], cwd=ROOT,
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    return [line[3:] for line in got.stdout.splitlines()]
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"
+
+
+def run(chosen: list[Step], out: Path) -> int:
+    """Run the steps not yet done, one at a time, niced; 0, or 1 at the first that fails."""
+    todo = [s for s in chosen if not (out / f"{s.name}.done").exists()]
+    for s in chosen:
+        if s not in todo:
+            print(f"{s.name}: done before, skipped")
+    spent = expected = 0.0
+    for k, step in enumerate(todo, 1):
+        rest = sum(s.expect_s for s in todo[k - 1 :]) * (spent / expected if expected else 1.0)
+        print(f"[{k}/{len(todo)}] {step.name} (~{_minutes(step.expect_s)}; all left ~"
+              f"{_minutes(rest)})", flush=True)  # fmt: skip
+        started = out / f"{step.name}.started"
+        if step.fresh and not started.exists():
+            shutil.rmtree(ROOT / step.fresh, ignore_errors=True)
+        started.touch()
+        t0 = time.monotonic()
+        with open(out / f"{step.name}.log", "w") as log:
+            rc = subprocess.call(step.argv, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
+                                 preexec_fn=lambda: os.nice(10))  # fmt: skip
+        wall = time.monotonic() - t0
+        if rc != 0:
+            print(f"{step.name} failed (exit {rc}) after {wall:.0f} s: see {out / step.name}.log",
+                  file=sys.stderr)  # fmt: skip
+            return 1
+        (out / f"{step.name}.done").write_text(f"{wall:.1f}\n")
+        spent, expected = spent + wall, expected + step.expect_s
+        print(f"    done in {_minutes(wall)}", flush=True)
+    print(f"every step done: the grids in {EVAL}/*/summary.md, the rest in {out}/*.log and "
+          f"*.csv (pair them with experiments/contact_table.py)")  # fmt: skip
+    return 0
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, default=Path("runs/regenerate"),
+                   help="logs, CSVs, markers (default: runs/regenerate)")  # fmt: skip
+    p.add_argument("--only", default="", help="comma-separated fnmatch patterns of step names")
+    p.add_argument("--skip-nominal", action="store_true", help="not the nominal grid (32 min)")
+    p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
+    args = p.parse_args(argv)
+    out = args.out if args.out.is_absolute() else Path.cwd() / args.out
+    chosen = steps(str(out), _head())
+    if args.only:
+        patterns = [x for x in args.only.split(",") if x]
+        chosen = [s for s in chosen if any(fnmatch.fnmatch(s.name, x) for x in patterns)]
+        if not chosen:
+            print(f"--only {args.only}: no step matches", file=sys.stderr)
+            return 2
+    if args.skip_nominal:
+        chosen = [s for s in chosen if s.name != "g_paper_spiral_50mm_nominal_board"]
+    if args.dry_run:
+        for s in chosen:
+            print(f"{s.name}: {shlex.join(s.argv)}")
+        print(f"{len(chosen)} steps, ~{_minutes(sum(s.expect_s for s in chosen))} here")
+        return 0
+    if any(s.name.startswith("ship_") for s in chosen) and (dirty := _dirty()):
+        print(f"the code has uncommitted changes ({', '.join(dirty[:3])}): the shipped policies' "
+              "provenance names HEAD; commit first", file=sys.stderr)  # fmt: skip
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        return run(chosen, out)
+    except KeyboardInterrupt:
+        print("interrupted: rerun the same command to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
