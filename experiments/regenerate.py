@@ -8,7 +8,7 @@ contact sets, the paper's skill on the 500, zero error, the sensor and friction 
 simulated arm, vision to action, and the nominal 350-range grid last. `policies/paper` is not
 retrained (`python train.py --preset paper`, ~22 min here, is a decision of its own).
 
-    python experiments/regenerate.py                       # everything, ~105 min on 2 cores
+    python experiments/regenerate.py                       # everything, ~110 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 32 min nominal grid
@@ -16,8 +16,9 @@ retrained (`python train.py --preset paper`, ~22 min here, is a decision of its 
 A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME.done and is
 skipped; a grid is removed before its first start only (a stale grid of the skill before would
 otherwise be resumed under the same config), then eval.py resumes it; a training resumes from
-its checkpoints. Logs and CSVs go to OUT (default runs/regenerate); the grids to docs/eval/.
-The steps' durations are those of the last regeneration on this 2-core CPU, for the ETA.
+its checkpoints. OUT belongs to one commit (OUT/commit): after a new commit, use a new OUT.
+Logs and CSVs go to OUT (default runs/regenerate), the grids to docs/eval/. The steps' durations
+are those of the last regeneration on this 2-core CPU, for the ETA.
 """
 
 from __future__ import annotations
@@ -214,6 +215,12 @@ def main(argv=None) -> int:
               "provenance names HEAD; commit first", file=sys.stderr)  # fmt: skip
         return 2
     out.mkdir(parents=True, exist_ok=True)
+    head, mark = _head(), out / "commit"
+    if mark.exists() and mark.read_text().strip() != head:
+        print(f"--out {args.out} holds a regeneration of commit {mark.read_text().strip()[:7]}, "
+              f"not of HEAD {head[:7]}: give a new --out", file=sys.stderr)  # fmt: skip
+        return 2
+    mark.write_text(head + "\n")
     try:
         return run(chosen, out)
     except KeyboardInterrupt:

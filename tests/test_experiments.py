@@ -207,3 +207,7 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     bad = subprocess.run([sys.executable, ROOT / "experiments/regenerate.py", "--only", "nope"],
                          capture_output=True, text=True, cwd=ROOT)  # fmt: skip
     assert bad.returncode == 2 and bad.stderr.strip() == "--only nope: no step matches"
+    (tmp_path / "commit").write_text("0" * 40 + "\n")  # a regeneration of another commit
+    argv = [sys.executable, ROOT / "experiments/regenerate.py", "--only", "zero", "--out", tmp_path]
+    other = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
+    assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
