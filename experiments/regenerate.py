@@ -196,7 +196,8 @@ def main(argv=None) -> int:
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     args = p.parse_args(argv)
     out = args.out if args.out.is_absolute() else Path.cwd() / args.out
-    chosen = steps(str(out), _head())
+    head = _head()
+    chosen = steps(str(out), head)
     if args.only:
         patterns = [x for x in args.only.split(",") if x]
         chosen = [s for s in chosen if any(fnmatch.fnmatch(s.name, x) for x in patterns)]
@@ -215,7 +216,7 @@ def main(argv=None) -> int:
               "provenance names HEAD; commit first", file=sys.stderr)  # fmt: skip
         return 2
     out.mkdir(parents=True, exist_ok=True)
-    head, mark = _head(), out / "commit"
+    mark = out / "commit"
     if mark.exists() and mark.read_text().strip() != head:
         print(f"--out {args.out} holds a regeneration of commit {mark.read_text().strip()[:7]}, "
               f"not of HEAD {head[:7]}: give a new --out", file=sys.stderr)  # fmt: skip
