@@ -98,7 +98,7 @@ def main(argv=None) -> None:
     p.add_argument("--range", type=int, required=True)
     p.add_argument("--trial", default="failure", help="index, failure or success")
     p.add_argument("--contacts-at", type=float, help="s: list the contacts from here on")
-    p.add_argument("--search", default="", help="SearchConfig constants changed, 'NAME=V;...'")
+    p.add_argument("--search", default="", help="SkillConfig constants changed, 'NAME=V;...'")
     p.add_argument("--npz", help="write the per-period trace here")
     args = p.parse_args(argv)
     trace, contacts = replay(args)

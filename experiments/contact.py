@@ -33,7 +33,7 @@ from mjx_peg.evaluation import taxonomy
 from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
-from mjx_peg.skill.search import SKILLS, skill_search
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.skill.sensor import SensorConfig
 from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -94,15 +94,15 @@ def changed(vector: np.ndarray, text: str) -> np.ndarray:
 
 
 def search_changes(changes: str) -> dict[str, float]:
-    """{NAME: V} of 'NAME=V;...' (SearchConfig constants)."""
+    """{NAME: V} of 'NAME=V;...' (SkillConfig constants)."""
     pairs = (item.split("=") for item in changes.split(";") if item)
     return {k.strip(): float(v) for k, v in pairs}
 
 
 def search_config(skill, changes: str):
-    """The SearchConfig of `skill` (a name or a SearchConfig) with the constants of 'NAME=V;...'
+    """The SkillConfig of `skill` (a name or a SkillConfig) with the constants of 'NAME=V;...'
     changed."""
-    search = skill_search(skill) if isinstance(skill, str) else skill
+    search = skill_config(skill) if isinstance(skill, str) else skill
     return search.replace(**search_changes(changes))
 
 
@@ -146,7 +146,7 @@ def main(argv=None) -> None:
     p.add_argument(
         "--search",
         default="",
-        help="the search's constants changed, 'NAME=V;...' with names of skill.search.SearchConfig,"
+        help="the search's constants changed, 'NAME=V;...' with names of skill.search.SkillConfig,"
         " e.g. 'press_accel=2;centre_gain=0'",
     )
     args = p.parse_args(argv)

@@ -21,7 +21,7 @@ from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.evaluation.grid import load_controller
 from mjx_peg.policy.export import policy_skill
-from mjx_peg.skill.search import SKILLS, skill_search
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     _, controller = load_controller(args.policy)
     skill = args.skill or policy_skill(args.policy)
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(skill))
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(skill))
     saved = {}
     for shape in args.shape.split(","):
         task = TaskConfig.from_mm_deg((shape,), args.size_mm, args.linear_mm, args.angular_deg,

@@ -32,7 +32,7 @@ def main(argv=None) -> None:
     p.add_argument("--per-shape", type=int, default=5, help="trials of each shape per range")
     p.add_argument("--policy", default="paper", help="'baseline', a shipped policy or a run")
     p.add_argument("--skill", default=None, help="default: the evaluation's")
-    p.add_argument("--search", default="", help="SearchConfig constants changed, 'NAME=V;...'")
+    p.add_argument("--search", default="", help="SkillConfig constants changed, 'NAME=V;...'")
     p.add_argument("--time-limit", type=float, default=None, help="default: the evaluation's")
     p.add_argument("--threads", type=int, default=None)
     p.add_argument("--npz", help="write success, time_s, range, stop, peak force per trial here")

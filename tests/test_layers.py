@@ -17,9 +17,9 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "mjx_peg"
 # other, except through the optional imports listed in PEER_IMPORTS.
 RANKS = {
     "errors": 0,  # UsageError
-    "compat": 0,  # reading files of earlier versions
+    "file_versions": 0,  # reading files of earlier versions
     "cores": 0,
-    "_xp": 0,  # the array namespace
+    "array_api": 0,  # the array namespace
     "cli": 1,
     "outdir": 2,  # the resumable output directory, over cli's atomic writes
     "world": 2,

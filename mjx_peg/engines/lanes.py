@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mjx_peg._xp import tree_map
+from mjx_peg.array_api import tree_map
 from mjx_peg.cores import cores
 from mjx_peg.engines import interrupt, period, sims
 from mjx_peg.engines.jacobian import jacobians

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from mjx_peg._xp import namespace_of, ring_write, tree_map
+from mjx_peg.array_api import namespace_of, ring_write, tree_map
 from mjx_peg.engines.trial import (
     SettleState,
     TrialConfig,
@@ -39,7 +39,7 @@ from mjx_peg.skill.control_step import (
     Basis,
     ControlConfig,
     Measurement,
-    Skill,
+    SkillConsts,
     external_wrench,
     skill_torque,
     wrench_to_goal,
@@ -50,7 +50,7 @@ from mjx_peg.skill.search import aligned_rotation, spiral_state
 class TrialConsts(NamedTuple):
     """Per trial, fixed at its start (a pytree; leading dims are trials)."""
 
-    skill: Skill  # the control step's constants
+    skill: SkillConsts  # the control step's constants
     sensor: sensor.SensorParams  # the F/T pipeline's draws
     tare: object  # (..., 6) the F/T reading at rest at the start (force, torque; sensor frame)
     hole_origin: object  # (..., 3) the true hole's axis at the board's bottom (`task.hole_frame`)
@@ -113,7 +113,7 @@ class Outcome(NamedTuple):
     protective_stop: object
 
 
-def make_consts(skill: Skill, sensor_params, tare, hole_origin, hole_axis, size,
+def make_consts(skill: SkillConsts, sensor_params, tare, hole_origin, hole_axis, size,
                 tip_pos) -> TrialConsts:  # fmt: skip
     """The constants of trials starting with the tip at `tip_pos` (..., 3)."""
     xp = namespace_of(tip_pos, hole_origin)
@@ -179,7 +179,7 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     """(state, torques (..., n), wrench (..., 6)): one period of trials that go on.
 
     wrench: what the compliance sees (goal frame, at the tcp), after the F/T pipeline and the
-    damping. On NumPy the chatter ring is written in place (`_xp.ring_write`).
+    damping. On NumPy the chatter ring is written in place (`array_api.ring_write`).
     """
     xp = namespace_of(meas.ft, meas.qvel)
     step, goal_rot = state.step, consts.skill.goal_rot

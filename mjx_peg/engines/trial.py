@@ -18,12 +18,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 from mjx_peg.skill import dmp, sensor
 from mjx_peg.skill.control_step import Basis, ControlConfig
 from mjx_peg.skill.params import ControllerParams, controller_from_vector
-from mjx_peg.skill.search import SearchConfig
+from mjx_peg.skill.search import SkillConfig
 from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
 
 
@@ -68,7 +68,7 @@ class TrialConfig:
     moment_deadband: float = 0.0
     # How the skill frees a peg resting on the board top (skill/search.py, an extension); the
     # default, all off: the paper's skill. `skill.search.SKILLS` names the presets.
-    search: SearchConfig = dataclasses.field(default_factory=SearchConfig)
+    search: SkillConfig = dataclasses.field(default_factory=SkillConfig)
     chatter_window_s: float = 1.0  # s: the chatter metric averages the last window of a trial
     # A failure whose outcome can no longer change ends at once, flagged `settled` (see
     # `settle_update`): after settle_after_s (the DMP's forcing is over), the envelope (least and
@@ -142,7 +142,7 @@ class TrialConfig:
     @property
     def movement(self) -> dmp.DMPConfig:
         """The DMP's constants the trial runs: `dmp`, its movement's duration T and cruise the
-        skill's where the skill names them (`SearchConfig.movement_s`, `movement_cruise`)."""
+        skill's where the skill names them (`SkillConfig.movement_s`, `movement_cruise`)."""
         movement = self.dmp
         if self.search.movement_s > 0:
             movement = dataclasses.replace(movement, duration=self.search.movement_s)

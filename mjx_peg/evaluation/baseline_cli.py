@@ -9,7 +9,7 @@ from mjx_peg import cli
 from mjx_peg.engines import ENGINES, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILLS, skill_search
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -39,7 +39,7 @@ def main(argv=None) -> int:
     for shape in shapes:
         if shape not in constants.SHAPES:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_search(args.skill))
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(args.skill))
     tasks = [
         TaskConfig.from_mm_deg(
             (shape,), args.size, args.linear_mm, args.angular_deg, grasp_model=args.grasp_model

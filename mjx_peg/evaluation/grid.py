@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli, compat
+from mjx_peg import cli, file_versions
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
@@ -37,7 +37,7 @@ from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy, shipped_names
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_search
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_config
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
@@ -138,7 +138,7 @@ class EvalConfig:
             raise UsageError(
                 f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
             )
-        skill_search(self.skill)  # a known skill
+        skill_config(self.skill)  # a known skill
         if not isinstance(self.full_time_limit, bool):
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
@@ -151,7 +151,7 @@ class EvalConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_search(self.skill),
+            search=skill_config(self.skill),
         )
 
     @property
@@ -292,7 +292,7 @@ def _recorded(doc: dict) -> dict:
     ValueError if it is not an evaluation's."""
     if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
         raise ValueError(f"no {SCHEMA} config")
-    return compat.eval_config(doc["config"])
+    return file_versions.eval_config(doc["config"])
 
 
 def prepare_out_dir(
@@ -347,7 +347,7 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-        arrays = compat.range_results(arrays)
+        arrays = file_versions.range_results(arrays)
         # Saved before credible contact (contact_model 1): no contact metrics.
         optional = _CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
         missing = [k for k in _RESULT_FIELDS if k not in arrays and k not in optional]

@@ -6,7 +6,7 @@ entrance, distance from the axis), places it:
 
 - wedged in the hole: more than WEDGED_DEPTH below the entrance, within the hole (jammed);
 - above the board: more than ABOVE_HEIGHT above the entrance plane (it never came down, or left:
-  the spiral skill withdraws a peg whose search ran out, `SearchConfig.search_budget`);
+  the spiral skill withdraws a peg whose search ran out, `SkillConfig.search_budget`);
 - on the rim: at the board top with the peg's footprint over the hole's edge (the tip within the
   hole's inradius plus the peg's circumradius of the axis);
 - crept away: at the board top, the footprint clear of the hole.

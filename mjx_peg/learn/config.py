@@ -19,12 +19,12 @@ import dataclasses
 import json
 import math
 
-from mjx_peg import compat
+from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_search
+from mjx_peg.skill.search import skill_config
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -127,7 +127,7 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        skill_search(self.skill)  # a known skill
+        skill_config(self.skill)  # a known skill
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -151,7 +151,7 @@ class TrainConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_search(self.skill),
+            search=skill_config(self.skill),
         )
 
     def map_centre(self):
@@ -170,7 +170,7 @@ class TrainConfig:
         unknown = set(data) - names
         if unknown:
             raise UsageError(f"config.json has unknown fields {sorted(unknown)}")
-        return cls(**compat.train_config(data))
+        return cls(**file_versions.train_config(data))
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import compat
+from mjx_peg import file_versions
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.policy import network, observation, shipped
@@ -51,7 +51,7 @@ class Policy:
     @property
     def skill(self) -> str:
         """The skill it was trained with (skill.search.SKILLS); "paper" for runs made before."""
-        return compat.train_config(self.manifest.get("config", {}))["skill"]
+        return file_versions.train_config(self.manifest.get("config", {}))["skill"]
 
     def act(self, obs) -> np.ndarray:
         """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
@@ -95,7 +95,7 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
     ranges = manifest["action"]["ranges"]
     if not isinstance(ranges, dict):
         raise PolicyError(f"{where}: action.ranges is not an object")
-    kind = ranges.get("map", compat.MANIFEST_ACTION_MAP)
+    kind = ranges.get("map", file_versions.MANIFEST_ACTION_MAP)
     if kind == "sigmoid":
         return None
     if kind != "centred":

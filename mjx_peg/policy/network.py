@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.skill.params import (
     controller_from_action,
     controller_from_centred_action,

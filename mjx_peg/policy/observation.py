@@ -22,7 +22,7 @@ imports neither numpy nor jax at module level.
 
 from __future__ import annotations
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.world.constants import SHAPES, SYMMETRY
 
 WORKSPACE_CENTRE = (0.4, 0.0)  # m

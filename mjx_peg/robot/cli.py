@@ -32,7 +32,7 @@ from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.skill.search import SKILLS, skill_search
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -203,7 +203,7 @@ def main(argv=None) -> int:
     specs = sample_trials(task, args.seed, args.trials)
     holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [controller_vector(policy, hole) for hole in holes]
-    search = skill_search(args.skill or policy_skill(policy))
+    search = skill_config(args.skill or policy_skill(policy))
     config = TrialConfig(time_limit_s=args.time_limit, search=search)
     rows, start = [], time.perf_counter()
     bar = None

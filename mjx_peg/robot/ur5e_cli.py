@@ -31,7 +31,7 @@ from mjx_peg.robot.runtime import HoleEstimate, SkillRun, SkillRuntime, controll
 from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
 from mjx_peg.skill.control_step import start_state
-from mjx_peg.skill.search import skill_search
+from mjx_peg.skill.search import skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, feasible_configuration, goal_pose
 
@@ -253,7 +253,7 @@ def run(args, prog: str) -> int:
                 "transfer it first (train.py --preset transfer --init-from ...)"
             )
     vector = controller_vector(policy, hole)
-    search = skill_search(args.skill or policy_skill(policy))
+    search = skill_config(args.skill or policy_skill(policy))
     config = TrialConfig(time_limit_s=args.time_limit, search=search)
     p = plan(hole, vector, config)
     if args.dry_run:

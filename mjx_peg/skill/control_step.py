@@ -60,10 +60,10 @@ from typing import NamedTuple
 
 from mjx_peg.skill import dmp, osc
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.search import SearchConfig, bounded_press, searched_offset
+from mjx_peg.skill.search import SkillConfig, bounded_press, searched_offset
 
 
-class Skill(NamedTuple):
+class SkillConsts(NamedTuple):
     """Per-trial constants of the skill (a pytree under JAX)."""
 
     goal_pos: object  # (..., 3) goal position of the tcp, world frame
@@ -82,10 +82,12 @@ class Basis(NamedTuple):
     widths: object  # (n_basis,)
 
 
-def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float) -> Skill:
-    """Skill constants from the learned parameters and the goal; D_y for critical damping."""
+def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float) -> SkillConsts:
+    """Per-trial constants from the learned parameters and the goal; D_y for critical damping."""
     k_y = dmp.stiffness_diag(params.k_t, params.k_theta)
-    return Skill(goal_pos, goal_rot, y0, k_y, dmp.critical_damping(k_y, tau), params.compliance)
+    return SkillConsts(
+        goal_pos, goal_rot, y0, k_y, dmp.critical_damping(k_y, tau), params.compliance
+    )
 
 
 def external_wrench(force_site, torque_site, tare):
@@ -125,7 +127,7 @@ def wrench_in_goal_frame(force_site, torque_site, tare, rot_site, lever_world, g
     )
 
 
-def task_state(skill: Skill, tcp_pos, tcp_rot, tcp_vel):
+def task_state(skill: SkillConsts, tcp_pos, tcp_rot, tcp_vel):
     """y, yd (..., 6) of the tcp in the goal frame; tcp_vel (..., 6) = [linear, angular], world."""
     return osc.task_state(
         tcp_pos, tcp_rot, tcp_vel[..., :3], tcp_vel[..., 3:], skill.goal_pos, skill.goal_rot
@@ -167,7 +169,7 @@ class ControlConfig(NamedTuple):
     force_deadband: float = 0.0
     moment_deadband: float = 0.0
     # the contact search (skill/search.py); the default, all off: the paper's skill
-    search: SearchConfig = SearchConfig()
+    search: SkillConfig = SkillConfig()
 
 
 def _shrink(v, width: float):
@@ -191,7 +193,7 @@ def deadband(wrench, force: float, moment: float):
     return xp.concat([_shrink(wrench[..., :3], force), _shrink(wrench[..., 3:], moment)], axis=-1)
 
 
-def skill_torque(config: ControlConfig, skill: Skill, basis: Basis, meas: Measurement):
+def skill_torque(config: ControlConfig, skill: SkillConsts, basis: Basis, meas: Measurement):
     """(..., n) joint torques of the compliant DMP for one control period (Eqs. 2, 6, 10-14),
     with the contact search of `config.search` where it is on (skill/search.py)."""
     tcp_vel = (meas.jac @ meas.qvel[..., None])[..., 0]
@@ -302,7 +304,7 @@ __all__ = [
     "Basis",
     "ControlConfig",
     "Measurement",
-    "Skill",
+    "SkillConsts",
     "contact_loop_gain",
     "coupling_loop_radius",
     "coupling_time_constant_for",

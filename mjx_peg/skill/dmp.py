@@ -49,7 +49,7 @@ import dataclasses
 import importlib
 import math
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 
 WIDTH_PER_GAP = 0.3  # basis width sigma_i over the distance between neighbouring centres

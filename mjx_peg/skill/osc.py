@@ -14,7 +14,7 @@ module imports neither numpy nor jax.
 
 from __future__ import annotations
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.world.rotations import rotvec_from_matrix
 
 

@@ -54,7 +54,7 @@ import importlib
 import math
 from typing import NamedTuple
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 
 N_PARAMS = 38

@@ -124,7 +124,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH
 
@@ -133,9 +133,9 @@ ENTRANCE_HEIGHT = HOLE_DEPTH - GOAL_HEIGHT
 
 
 @dataclasses.dataclass(frozen=True)
-class SearchConfig:
-    """The contact search's constants (not learned); the defaults, every element off: the paper's
-    skill."""
+class SkillConfig:
+    """The skill's configuration: the contact search's constants (not learned); the defaults,
+    every element off, are the paper's skill."""
 
     press_accel: float = 0.0  # m/s^2: a_p, the largest axial command into the hole; 0: unbounded
     lateral_scale: float = 1.0  # c_lat: lateral compliance while resting, times C's x, y rows
@@ -176,35 +176,35 @@ class SearchConfig:
                      "movement_s", "insert_depth"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
-                raise UsageError(f"SearchConfig.{name} must be a number >= 0, got {value!r}")
+                raise UsageError(f"SkillConfig.{name} must be a number >= 0, got {value!r}")
         if not (math.isfinite(self.movement_cruise) and 0 <= self.movement_cruise < 1):
             raise UsageError(
-                f"SearchConfig.movement_cruise must be in [0, 1), got {self.movement_cruise!r}"
+                f"SkillConfig.movement_cruise must be in [0, 1), got {self.movement_cruise!r}"
             )
         if not (math.isfinite(self.lateral_scale) and 0 <= self.lateral_scale <= 1):
             raise UsageError(
-                f"SearchConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
+                f"SkillConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
             )
         for name in ("spiral_pitch", "spiral_radius", "spiral_ramp", "spiral_axial",
                      "entry_follow", "insert_axial", "insert_ramp", "withdraw_s"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise UsageError(f"SearchConfig.{name} must be a number > 0, got {value!r}")
+                raise UsageError(f"SkillConfig.{name} must be a number > 0, got {value!r}")
         if not self.search_budget > 0:
             raise UsageError(
-                f"SearchConfig.search_budget must be > 0 (inf: never), got {self.search_budget!r}"
+                f"SkillConfig.search_budget must be > 0 (inf: never), got {self.search_budget!r}"
             )
         if not math.isfinite(self.withdraw_height):
             raise UsageError(
-                f"SearchConfig.withdraw_height must be a number, got {self.withdraw_height!r}"
+                f"SkillConfig.withdraw_height must be a number, got {self.withdraw_height!r}"
             )
         if not (math.isfinite(self.spiral_lateral) and 0 <= self.spiral_lateral <= 1):
             raise UsageError(
-                f"SearchConfig.spiral_lateral must be in [0, 1], got {self.spiral_lateral!r}"
+                f"SkillConfig.spiral_lateral must be in [0, 1], got {self.spiral_lateral!r}"
             )
         if not (0 <= self.force_on < self.force_full < math.inf):
             raise UsageError(
-                "SearchConfig needs 0 <= force_on < force_full, got "
+                "SkillConfig needs 0 <= force_on < force_full, got "
                 f"{self.force_on!r}, {self.force_full!r}"
             )
 
@@ -220,16 +220,16 @@ class SearchConfig:
             or self.insert_axial != 1.0
         )
 
-    def replace(self, **changes) -> SearchConfig:
+    def replace(self, **changes) -> SkillConfig:
         return dataclasses.replace(self, **changes)
 
 
 # The named skills of the CLIs: the paper's literal one, and ours with the contact search.
 SKILLS = {
-    "paper": SearchConfig(),
-    "search": SearchConfig(centre_gain=1.0),
-    "align": SearchConfig(centre_gain=1.0, align_rate=1.0),
-    "spiral": SearchConfig(
+    "paper": SkillConfig(),
+    "search": SkillConfig(centre_gain=1.0),
+    "align": SkillConfig(centre_gain=1.0, align_rate=1.0),
+    "spiral": SkillConfig(
         centre_gain=1.0,
         align_rate=1.0,
         align_depth=0.015,
@@ -255,14 +255,14 @@ SKILL_DESCRIPTIONS = {
 }
 
 
-def skill_search(name: str) -> SearchConfig:
-    """The SearchConfig of a named skill (`SKILLS`)."""
+def skill_config(name: str) -> SkillConfig:
+    """The SkillConfig of a named skill (`SKILLS`)."""
     if name not in SKILLS:
         raise UsageError(f"unknown skill {name!r}: choose one of {', '.join(SKILLS)}")
     return SKILLS[name]
 
 
-def resting_gate(config: SearchConfig, wrench):
+def resting_gate(config: SkillConfig, wrench):
     """(...,) g in [0, 1]: how firmly the peg rests on something, from the axial force
     N = -wrench[..., 2] (N; goal frame, z down: the board pushing the peg up is positive)."""
     xp = namespace_of(wrench)
@@ -278,7 +278,7 @@ def centre_of_pressure(wrench, min_force: float):
     return xp.stack([wrench[..., 4], -wrench[..., 3]], axis=-1) / n[..., None]
 
 
-def searched_offset(config: SearchConfig, dy, wrench, rotation=None, spiral=None, height=None):
+def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None, height=None):
     """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment,
     spiral and insertion elements applied, from the wrench (..., 6) the compliance sees, the
     goal's rotation (..., 3) the alignment found (`aligned_rotation`), the spiral's state (..., 3)
@@ -319,7 +319,7 @@ def _height_over_goal(tcp_pos, goal_pos, goal_rot):
     return -xp.sum(goal_rot[..., :, 2] * (tcp_pos - goal_pos), axis=-1)
 
 
-def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
+def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
                      dt: float):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
@@ -343,7 +343,7 @@ def aligned_rotation(config: SearchConfig, rotation, wrench, tcp_pos, goal_pos, 
     return xp.concat([tilt, yaw], axis=-1)
 
 
-def spiral_state(config: SearchConfig, spiral, wrench, tcp_pos, goal_pos, goal_rot, dt: float):
+def spiral_state(config: SkillConfig, spiral, wrench, tcp_pos, goal_pos, goal_rot, dt: float):
     """(..., 3) the spiral's state (tau, h_r, sigma) after one period of dt seconds, from the
     state before (zeros at the start), the wrench (..., 6) the compliance sees (its axial force
     through the gate g) and the tcp's position (..., 3) against the goal's pose (..., 3),
@@ -383,7 +383,7 @@ def spiral_state(config: SearchConfig, spiral, wrench, tcp_pos, goal_pos, goal_r
     return xp.stack([tau, h_r, sigma], axis=-1)
 
 
-def spiral_path(config: SearchConfig, tau):
+def spiral_path(config: SkillConfig, tau):
     """(..., 2) the spiral's goal offset s (goal frame x, y; m) after a resting time tau (...,):
     an Archimedean spiral about the hole's estimated axis run round its turns at the speed v,
     out and back in, over and over. With t = tau - t_w (0 before) taken modulo the period
@@ -418,7 +418,7 @@ def spiral_path(config: SearchConfig, tau):
     return xp.stack([r * xp.cos(phi), r * xp.sin(phi)], axis=-1)
 
 
-def bounded_press(config: SearchConfig, ydd):
+def bounded_press(config: SkillConfig, ydd):
     """(..., 6) the task acceleration command ydd (..., 6) with its axial part (goal z, into the
     hole) bounded by press_accel: the press the tcp can exert is then Lambda_zz press_accel."""
     xp = namespace_of(ydd)
@@ -429,13 +429,13 @@ def bounded_press(config: SearchConfig, ydd):
 __all__ = [
     "SKILLS",
     "SKILL_DESCRIPTIONS",
-    "SearchConfig",
+    "SkillConfig",
     "aligned_rotation",
     "bounded_press",
     "centre_of_pressure",
     "resting_gate",
     "searched_offset",
-    "skill_search",
+    "skill_config",
     "spiral_path",
     "spiral_state",
 ]

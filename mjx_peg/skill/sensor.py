@@ -54,7 +54,7 @@ import dataclasses
 import math
 from typing import NamedTuple
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 
 # Counter streams of the hash: noise of sample j, axis i uses counters 2 (6 j + i) and +1.

@@ -176,10 +176,10 @@ def run_act(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     from mjx_peg.policy.export import policy_skill
-    from mjx_peg.skill.search import skill_search
+    from mjx_peg.skill.search import skill_config
 
     skill = skill or policy_skill(policy)
-    config = TrialConfig(time_limit_s=time_limit_s, search=skill_search(skill))
+    config = TrialConfig(time_limit_s=time_limit_s, search=skill_config(skill))
     rows = []
     summary = {
         "policy": policy,

@@ -9,7 +9,7 @@ CONVENTIONS.md: quaternions are (w, x, y, z) and act as R(q) v = q v q*.
 
 from __future__ import annotations
 
-from mjx_peg._xp import namespace_of
+from mjx_peg.array_api import namespace_of
 
 # Below this squared angle (rad^2) the Taylor branches are used; their error is O(angle^4) ~ 1e-16.
 _SMALL_ANGLE_SQ = 1e-8

@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from mjx_peg import compat
+from mjx_peg import file_versions
 from mjx_peg.errors import UsageError
 from mjx_peg.world import kinematics
 from mjx_peg.world.constants import GOAL_HEIGHT, GRASP_MODELS, HOLE_DEPTH, PEG_LENGTH, SHAPES
@@ -278,7 +278,7 @@ class TrialSpec:
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> TrialSpec:
-        arrays = compat.spec_arrays(arrays)
+        arrays = file_versions.spec_arrays(arrays)
         missing = [name for name in _SPEC_FIELDS if name not in arrays]
         if missing:
             raise UsageError(f"TrialSpec arrays lack {', '.join(missing)}")

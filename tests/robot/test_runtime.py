@@ -75,11 +75,11 @@ def test_simulated_arm_runs_the_engines_trial():
 def test_simulated_arm_runs_the_engines_alignment():
     """The alignment's goal rotation is carried by the runtime as by the engine: through holes
     tilted up to 12 deg, the same outcomes, times and commands."""
-    from mjx_peg.skill.search import skill_search
+    from mjx_peg.skill.search import skill_config
 
     task = TaskConfig(shapes=("circle",), linear_error=0.001, angular_error=np.deg2rad(12.0))
     specs, vec = sample_trials(task, 3, 8).take([0, 1, 4]), baseline_params()
-    config = TrialConfig(time_limit_s=6.0, search=skill_search("align"))
+    config = TrialConfig(time_limit_s=6.0, search=skill_config("align"))
     results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), config,
                                     workers=1)  # fmt: skip
     assert results.success.all()  # each went deep enough for the tilt to adapt
@@ -96,7 +96,7 @@ def test_simulated_arm_runs_the_engines_spiral():
     `paper` policy leaves on the rim with the alignment alone (the 500 trials of
     experiments/contact.py, +-4 mm / +-6 deg, seed 1) insert with the spiral, with the same
     outcomes, times and commands on the simulated arm."""
-    from mjx_peg.skill.search import skill_search
+    from mjx_peg.skill.search import skill_config
 
     task = TaskConfig(shapes=("circle", "square"), sizes=(0.05,), linear_error=0.004,
                       angular_error=np.deg2rad(6.0))  # fmt: skip
@@ -105,12 +105,12 @@ def test_simulated_arm_runs_the_engines_spiral():
     runs = {
         name: cpu_engine.run_trials(
             specs, as_controller_params(vectors, len(specs)), workers=1,
-            config=TrialConfig(time_limit_s=8.0, search=skill_search(name)),
+            config=TrialConfig(time_limit_s=8.0, search=skill_config(name)),
         )
         for name in ("align", "spiral")
     }  # fmt: skip
     assert not runs["align"].success.any() and runs["spiral"].success.all()
-    config = TrialConfig(time_limit_s=8.0, search=skill_search("spiral"))
+    config = TrialConfig(time_limit_s=8.0, search=skill_config("spiral"))
     for i in range(len(specs)):
         arm = SimArm(specs, i)
         run = run_skill(arm, SkillRuntime(vectors[i], HoleEstimate.of_trial(specs, i), config),

@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from mjx_peg.engines.trial import TrialConfig, control_config, fitted_basis
 from mjx_peg.skill import control_step
 from mjx_peg.skill.baseline import baseline_controller
-from mjx_peg.skill.search import skill_search
+from mjx_peg.skill.search import skill_config
 from mjx_peg.world.rotations import tool_down_rotation
 
 
@@ -97,7 +97,7 @@ def test_numpy_and_jax_agree(x64, skill_name):
 
     rng = np.random.default_rng(2)
     skill, args = _inputs(rng, 16, baseline_controller())
-    trial = TrialConfig(search=skill_search(skill_name))
+    trial = TrialConfig(search=skill_config(skill_name))
     if skill_name != "paper":  # half the rows pressed firmly enough to open the gate
         args["wrench"][::2, 2] = -rng.uniform(10.0, 40.0, 8)
     if skill_name in ("align", "spiral"):  # the goal turned by what the alignment found

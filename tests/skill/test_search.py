@@ -9,7 +9,7 @@ import pytest
 
 from mjx_peg.errors import UsageError
 from mjx_peg.skill import search
-from mjx_peg.skill.search import SearchConfig
+from mjx_peg.skill.search import SkillConfig
 
 RNG = np.random.default_rng(4)
 
@@ -34,14 +34,14 @@ def test_centre_of_pressure_is_where_the_face_is_pressed():
 
 
 def test_gate_opens_with_the_axial_press_only():
-    config = SearchConfig(force_on=10.0, force_full=20.0)
+    config = SkillConfig(force_on=10.0, force_full=20.0)
     n = np.array([-50.0, 0.0, 10.0, 15.0, 20.0, 80.0])  # negative: pulling the peg down
     wrench = _pressed_face(np.zeros((6, 2)), n)
     np.testing.assert_allclose(search.resting_gate(config, wrench), [0, 0, 0, 0.5, 1, 1])
 
 
 def test_centring_moves_the_goal_away_from_the_pressed_side():
-    config = SearchConfig(centre_gain=0.8)
+    config = SkillConfig(centre_gain=0.8)
     r = np.array([[0.012, -0.005], [0.012, -0.005]])
     wrench = _pressed_face(r, np.array([40.0, 3.0]))  # resting firmly; a touch under f_on
     dy = RNG.normal(0.0, 1e-3, (2, 6))
@@ -52,7 +52,7 @@ def test_centring_moves_the_goal_away_from_the_pressed_side():
 
 
 def test_lateral_scale_and_press_bound():
-    config = SearchConfig(lateral_scale=0.25, press_accel=2.0)
+    config = SkillConfig(lateral_scale=0.25, press_accel=2.0)
     dy = RNG.normal(0.0, 1e-3, (1, 6))
     wrench = _pressed_face(np.zeros((1, 2)), np.array([30.0]))
     out = search.searched_offset(config, dy, wrench)
@@ -74,7 +74,7 @@ def _over_goal(height):
 
 
 def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
-    config = SearchConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
+    config = SkillConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
     wrench = _pressed_face(np.array([[0.01, -0.02]] * 4), np.array([40.0, 40.0, 15.0, 5.0]))
     wrench[:, 5] = 0.4  # a yaw moment: the hole's edges turning the peg
     m = wrench[:, 3:]
@@ -97,13 +97,13 @@ def test_alignment_integrates_the_moment_its_tilt_once_the_tcp_is_in_the_hole():
     np.testing.assert_allclose(off[:, 3:], dy[:, 3:] + far, atol=1e-15)
     np.testing.assert_array_equal(off[:, :3], dy[:, :3])
     # zero rate: no rotation, whatever is carried
-    off = search.searched_offset(SearchConfig(centre_gain=1.0), dy, np.zeros((4, 6)), far)
+    off = search.searched_offset(SkillConfig(centre_gain=1.0), dy, np.zeros((4, 6)), far)
     np.testing.assert_array_equal(off, dy)
-    assert search.aligned_rotation(SearchConfig(), far, wrench, *_over_goal(height), 1.0) is far
+    assert search.aligned_rotation(SkillConfig(), far, wrench, *_over_goal(height), 1.0) is far
 
 
 def test_alignment_bounds_its_yaw_apart_from_its_tilt_where_told():
-    config = SearchConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
+    config = SkillConfig(align_rate=2.0, align_max=0.3, align_depth=0.01)
     wrench = _pressed_face(np.array([[0.01, -0.02]] * 2), np.array([40.0, 40.0]))
     wrench[:, 5] = [0.4, -0.4]  # the yaw moment of a face dragged off the tcp's axis
     height = np.full(2, 0.08 - 0.011)  # in the hole: the tilt integrates too
@@ -117,12 +117,12 @@ def test_alignment_bounds_its_yaw_apart_from_its_tilt_where_told():
     np.testing.assert_array_equal(own[:, :2], same[:, :2])  # the tilt's bound is a_max's
     assert np.linalg.norm(own[0, :2]) == pytest.approx(0.3)
     with pytest.raises(UsageError, match="align_max_yaw"):
-        SearchConfig(align_max_yaw=-0.1)
+        SkillConfig(align_max_yaw=-0.1)
 
 
 def test_spiral_path_runs_out_and_back_between_its_turns_at_its_speed_within_its_radius():
     p, v, big_r = 0.006, 0.01, 0.012
-    config = SearchConfig(spiral_speed=v, spiral_pitch=p, spiral_radius=big_r, spiral_wait=1.0)
+    config = SkillConfig(spiral_speed=v, spiral_pitch=p, spiral_radius=big_r, spiral_wait=1.0)
     t_out, t_across = math.pi * big_r**2 / (p * v), math.pi * big_r / v  # 7.5 s, 3.8 s
     period = 2 * t_out + t_across
     tau = np.arange(0.0, 1.0 + period + 1.0, 1e-3)
@@ -157,7 +157,7 @@ def test_spiral_path_runs_out_and_back_between_its_turns_at_its_speed_within_its
 
 
 def test_spiral_state_runs_while_the_peg_rests_and_stops_once_it_drops_in():
-    config = SearchConfig(spiral_speed=0.01, spiral_wait=0.5, spiral_ramp=0.25,
+    config = SkillConfig(spiral_speed=0.01, spiral_wait=0.5, spiral_ramp=0.25,
                           entry_depth=0.0015, entry_follow=1.0)  # fmt: skip
     dt = 0.002
     pressed = _pressed_face(np.zeros((2, 2)), np.array([30.0, 30.0]))
@@ -185,11 +185,11 @@ def test_spiral_state_runs_while_the_peg_rests_and_stops_once_it_drops_in():
     np.testing.assert_allclose(np.diff(tau[1000:, 1]), dt)
     assert 0.0 < h_r[-1, 1] - (0.081 - 0.0005 * 1499 * dt) < 0.0006
     # zero speed: the state as it is
-    assert search.spiral_state(SearchConfig(), state, pressed, *_over_goal(height), dt) is state
+    assert search.spiral_state(SkillConfig(), state, pressed, *_over_goal(height), dt) is state
 
 
 def test_spiral_offset_moves_the_goal_with_a_lighter_press_and_a_stiffer_tip():
-    config = SearchConfig(centre_gain=1.0, spiral_speed=0.01, spiral_axial=2.0,
+    config = SkillConfig(centre_gain=1.0, spiral_speed=0.01, spiral_axial=2.0,
                           spiral_lateral=0.2, spiral_centre=0.5)  # fmt: skip
     r = np.array([[0.01, -0.004]] * 3)
     wrench = _pressed_face(r, np.full(3, 30.0))
@@ -210,7 +210,7 @@ def test_a_search_past_its_budget_stops_and_withdraws_the_peg():
     """Past tau_b of resting the resting time runs with the clock, pressed or not; the spiral
     stays where it stopped and over T_w the goal's axial offset blends to h_w above the hole's
     estimated entrance (80 mm over the goal); before tau_b nothing differs from no budget."""
-    config = SearchConfig(spiral_speed=0.01, spiral_wait=0.5, search_budget=4.0, withdraw_s=0.5,
+    config = SkillConfig(spiral_speed=0.01, spiral_wait=0.5, search_budget=4.0, withdraw_s=0.5,
                           withdraw_height=0.02)  # fmt: skip
     endless = config.replace(search_budget=math.inf)
     dt, height = 0.002, np.array([0.081, 0.081])
@@ -243,7 +243,7 @@ def test_insertion_press_stiffens_the_axial_compliance_deep_in_the_hole():
     """dy_z times 1 + b (kappa_i - 1), b rising from 0 at d_i below the estimated entrance (80 mm
     over the goal) to 1 at d_i + d_r; every other component, and the offset without a height,
     as they were; with no gate: the same whatever the wrench."""
-    config = SearchConfig(insert_axial=0.4, insert_depth=0.03, insert_ramp=0.02)
+    config = SkillConfig(insert_axial=0.4, insert_depth=0.03, insert_ramp=0.02)
     height = 0.08 - np.array([0.0, 0.03, 0.04, 0.05, 0.07])  # depths 0, 30, 40, 50, 70 mm
     dy = RNG.normal(0.0, 1e-3, (5, 6))
     wrench = RNG.normal(0.0, 5.0, (5, 6))
@@ -258,10 +258,10 @@ def test_insertion_press_stiffens_the_axial_compliance_deep_in_the_hole():
 def test_the_paper_skill_is_the_default_and_changes_no_torque():
     from mjx_peg.engines.trial import TrialConfig, control_config
 
-    assert not search.skill_search("paper").active and not TrialConfig().search.active
-    assert search.skill_search("search").active
-    assert search.skill_search("align") == search.skill_search("search").replace(align_rate=1.0)
-    spiral = search.skill_search("align").replace(
+    assert not search.skill_config("paper").active and not TrialConfig().search.active
+    assert search.skill_config("search").active
+    assert search.skill_config("align") == search.skill_config("search").replace(align_rate=1.0)
+    spiral = search.skill_config("align").replace(
         spiral_speed=0.03,
         movement_s=1.3,
         movement_cruise=0.5,
@@ -269,20 +269,20 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
         align_depth=0.015,
         search_budget=45.0,
     )
-    assert search.skill_search("spiral") == spiral  # the other constants: SearchConfig's defaults
-    assert control_config(TrialConfig()).search == search.skill_search("paper")
+    assert search.skill_config("spiral") == spiral  # the other constants: SkillConfig's defaults
+    assert control_config(TrialConfig()).search == search.skill_config("paper")
 
 
 def test_a_skill_that_names_its_movement_runs_the_path_of_that_movement():
-    """`SearchConfig.movement_s` and `movement_cruise` replace the DMP's movement duration T and
+    """`SkillConfig.movement_s` and `movement_cruise` replace the DMP's movement duration T and
     cruise; the forcing fitted at them follows the cruising path of T (within 1 % of the travel),
     and the other skills keep the trial's own DMP (minimum jerk over 2 s)."""
     from mjx_peg.engines.trial import TrialConfig, fitted_basis
     from mjx_peg.skill import dmp
 
     assert TrialConfig().movement == TrialConfig().dmp
-    assert TrialConfig(search=search.skill_search("align")).movement == TrialConfig().dmp
-    movement = TrialConfig(search=search.skill_search("spiral")).movement
+    assert TrialConfig(search=search.skill_config("align")).movement == TrialConfig().dmp
+    movement = TrialConfig(search=search.skill_config("spiral")).movement
     assert movement == dmp.DMPConfig(duration=1.3, cruise=0.5)
     y0, goal = np.array([0.0, 0.0, -0.15, 0.1, -0.05, 0.2]), np.zeros(6)
     k_y = np.full(6, movement.k_ref)
@@ -299,7 +299,7 @@ def test_numpy_and_jax_agree(x64):
     import jax
     import jax.numpy as jnp
 
-    config = SearchConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
+    config = SkillConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
                           spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
                           insert_depth=0.005, search_budget=10.0)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
@@ -327,31 +327,31 @@ def test_numpy_and_jax_agree(x64):
 
 def test_bad_config_and_unknown_skill_are_one_clear_error():
     with pytest.raises(UsageError, match="centre_gain"):
-        SearchConfig(centre_gain=-1.0)
+        SkillConfig(centre_gain=-1.0)
     with pytest.raises(UsageError, match="align_rate"):
-        SearchConfig(align_rate=-0.5)
+        SkillConfig(align_rate=-0.5)
     with pytest.raises(UsageError, match="lateral_scale"):
-        SearchConfig(lateral_scale=1.5)
+        SkillConfig(lateral_scale=1.5)
     with pytest.raises(UsageError, match="force_on < force_full"):
-        SearchConfig(force_on=5.0, force_full=5.0)
+        SkillConfig(force_on=5.0, force_full=5.0)
     with pytest.raises(UsageError, match="spiral_pitch"):
-        SearchConfig(spiral_pitch=0.0)
+        SkillConfig(spiral_pitch=0.0)
     with pytest.raises(UsageError, match="spiral_lateral"):
-        SearchConfig(spiral_lateral=-0.1)
+        SkillConfig(spiral_lateral=-0.1)
     with pytest.raises(UsageError, match="movement_s"):
-        SearchConfig(movement_s=-1.0)
+        SkillConfig(movement_s=-1.0)
     with pytest.raises(UsageError, match="movement_cruise"):
-        SearchConfig(movement_cruise=1.0)
+        SkillConfig(movement_cruise=1.0)
     with pytest.raises(UsageError, match="insert_axial"):
-        SearchConfig(insert_axial=0.0)
+        SkillConfig(insert_axial=0.0)
     with pytest.raises(UsageError, match="insert_ramp"):
-        SearchConfig(insert_ramp=-0.01)
+        SkillConfig(insert_ramp=-0.01)
     with pytest.raises(UsageError, match="search_budget"):
-        SearchConfig(search_budget=0.0)
+        SkillConfig(search_budget=0.0)
     with pytest.raises(UsageError, match="withdraw_s"):
-        SearchConfig(withdraw_s=0.0)
+        SkillConfig(withdraw_s=0.0)
     with pytest.raises(UsageError, match="paper, search"):
-        search.skill_search("wiggle")
+        search.skill_config("wiggle")
 
 
 def _baseline_trials(shape, linear_error, angular_deg, seed, n, time_limit_s, skills):
@@ -367,7 +367,7 @@ def _baseline_trials(shape, linear_error, angular_deg, seed, n, time_limit_s, sk
     return {
         name: run_trials(specs, baseline_params(), engine="mujoco", threads=1,
                          config=TrialConfig(time_limit_s=time_limit_s,
-                                            search=search.skill_search(name)))
+                                            search=search.skill_config(name)))
         for name in skills
     }  # fmt: skip
 
@@ -414,7 +414,7 @@ def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim():
     vectors = load_policy("paper").controller_vectors(specs)
     results = {
         name: run_trials(specs, vectors, engine="mujoco", threads=1,
-                         config=TrialConfig(time_limit_s=10.0, search=search.skill_search(name)))
+                         config=TrialConfig(time_limit_s=10.0, search=search.skill_config(name)))
         for name in ("align", "spiral")
     }  # fmt: skip
     assert results["align"].success.sum() == 0
