@@ -30,7 +30,6 @@ import numpy as np
 from mjx_peg.array_api import tree_map
 from mjx_peg.cores import cores
 from mjx_peg.engines import interrupt, period, sims
-from mjx_peg.engines.jacobian import jacobians
 from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
@@ -52,6 +51,9 @@ mujoco_log.install()
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
 SLOTS_PER_THREAD = 512
+
+# The control period's pass by default: compiled by XLA (`engines/compiled.py`), or NumPy.
+COMPILED = False
 
 # One finished trial.
 RESULT_DTYPE = np.dtype(
@@ -218,27 +220,32 @@ class Lane:
         scene = np.concatenate([self.scene[keep], [k for k, _, _ in started]]).astype(np.int64)
         sim = np.concatenate([self.sim[keep], [s for _, s, _ in started]]).astype(np.int64)
         spec = np.concatenate([self.spec_index[keep], indices]).astype(np.int64)
-        consts, state = self.consts, self.state
-        if started:
-            new = tree_map(lambda *rows: np.stack(rows), *(c for _, _, c in started))
-            fresh = period.start(self.config, new)
-            if consts is None:
-                consts, state = new, fresh
-            else:
-                join = lambda a, b: np.concatenate([a[keep], b])  # noqa: E731
-                consts, state = tree_map(join, consts, new), tree_map(join, state, fresh)
-        elif consts is not None:
-            consts, state = _rows(consts, keep), _rows(state, keep)
         order = np.lexsort((sim, scene))
-        if not np.array_equal(order, np.arange(len(order))):
-            scene, sim, spec = scene[order], sim[order], spec[order]
-            consts, state = _rows(consts, order), _rows(state, order)
-        self.scene, self.sim, self.spec_index = scene, sim, spec
-        self.consts, self.state, self.n = consts, state, len(order)
+        self._join([c for _, _, c in started], keep, order)
+        self.scene, self.sim, self.spec_index = scene[order], sim[order], spec[order]
+        self.n = len(order)
         self.blocks = []
         for k in range(len(self.scenes)):
-            a, b = np.searchsorted(scene, [k, k + 1])
-            self.blocks.append((int(a), int(b), sim[a:b].astype(np.int32)))
+            a, b = np.searchsorted(self.scene, [k, k + 1])
+            self.blocks.append((int(a), int(b), self.sim[a:b].astype(np.int32)))
+
+    def _join(self, new: list, keep: np.ndarray, order: np.ndarray) -> None:
+        """The rows' constants and state: rows `keep`, then the new trials' (constants `new`, at
+        their start), in `order`."""
+        consts, state = self.consts, self.state
+        if new:
+            added = tree_map(lambda *rows: np.stack(rows), *new)
+            fresh = period.start(self.config, added)
+            if consts is None:
+                consts, state = added, fresh
+            else:
+                join = lambda a, b: np.concatenate([a[keep], b])  # noqa: E731
+                consts, state = tree_map(join, consts, added), tree_map(join, state, fresh)
+        elif consts is not None:
+            consts, state = _rows(consts, keep), _rows(state, keep)
+        if consts is not None and not np.array_equal(order, np.arange(len(order))):
+            consts, state = _rows(consts, order), _rows(state, order)
+        self.consts, self.state = consts, state
 
     # -- one control period ----------------------------------------------------------------------
 
@@ -253,9 +260,14 @@ class Lane:
         self.profile(stage, now - since)
         return now
 
-    def _measure(self) -> sims.Measured:
-        """The bound fields of rows [0, n): one gather per field and scene."""
-        parts = [self.scenes[k].measure(ids) for k, (a, b, ids) in enumerate(self.blocks) if b > a]
+    def _measure(self, size: int = 0) -> sims.Measured:
+        """The bound fields of rows [0, n), then copies of the last up to `size` rows: one gather
+        per field and scene."""
+        blocks = [(k, ids) for k, (a, b, ids) in enumerate(self.blocks) if b > a]
+        pads = [0] * (len(blocks) - 1) + [max(0, size - self.n)]
+        parts = [
+            self.scenes[k].measure(ids, pad) for (k, ids), pad in zip(blocks, pads, strict=True)
+        ]
         if len(parts) == 1:
             return parts[0]
         return sims.Measured(*(np.concatenate(field) for field in zip(*parts, strict=True)))
@@ -269,8 +281,7 @@ class Lane:
             m = self._measure()
             t = self._lap("measure", t)
             tip = m.site_pos[:, 1]
-            # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
-            physics_ok = ~(np.abs(m.time - self.state.step * cfg.timestep) > 0.5 * cfg.timestep)
+            physics_ok = sims.physics_ok(m.time, self.state.step, cfg.timestep)
             end = period.ends(cfg, self.consts, self.state, tip, m.qvel, physics_ok)
             rows = np.flatnonzero(end.ended)
             if rows.size == 0:
@@ -279,41 +290,33 @@ class Lane:
             state = _rows(self.state, rows)
             outcome = period.result(cfg, _rows(self.consts, rows), state, tip[rows],
                                     _rows(end, rows))  # fmt: skip
-            source.finish(self.spec_index[rows], outcome, state.step * cfg.timestep)
-            for i in rows.tolist():
-                self.scenes[self.scene[i]].free.append(int(self.sim[i]))
-            t = self._lap("ends", t)
-            indices = []
-            for _ in range(rows.size):
-                index = source.take()
-                if index is None:
-                    break
-                indices.append(index)
-            keep = np.ones(self.n, dtype=bool)
-            keep[rows] = False
-            self._add(indices, np.flatnonzero(keep))
-            self._lap("load", t)
-            if report:
-                source.flush()
+            self._finish(source, rows, outcome, state.step, report, t)
         return None
+
+    def _finish(self, source, rows: np.ndarray, outcome: period.Outcome, steps, report: bool,
+                t: float) -> None:  # fmt: skip
+        """Record the trials at `rows` that ended (`outcome`, after `steps` periods), free their
+        simulations, and fill their rows with new trials from `source`."""
+        source.finish(self.spec_index[rows], outcome, steps * self.config.timestep)
+        for i in rows.tolist():
+            self.scenes[self.scene[i]].free.append(int(self.sim[i]))
+        t = self._lap("ends", t)
+        indices = []
+        for _ in range(rows.size):
+            index = source.take()
+            if index is None:
+                break
+            indices.append(index)
+        keep = np.ones(self.n, dtype=bool)
+        keep[rows] = False
+        self._add(indices, np.flatnonzero(keep))
+        self._lap("load", t)
+        if report:
+            source.flush()
 
     def measurement(self, m: sims.Measured) -> period.PeriodMeasurement:
         """The period's measurement of rows [0, n) from their bound fields."""
-        tcp_pos, ft_pos = np.ascontiguousarray(m.site_pos[:, 0]), m.site_pos[:, 2]
-        jac, jac_dot = jacobians(m.cdof, m.cdof_dot, m.cvel, m.com, tcp_pos)
-        return period.PeriodMeasurement(
-            qvel=m.qvel,
-            tcp_pos=tcp_pos,
-            tcp_rot=np.ascontiguousarray(m.site_rot[:, 0]),
-            tip_pos=m.site_pos[:, 1],
-            ft=m.ft,
-            ft_rot=m.site_rot[:, 1],
-            ft_pos=ft_pos,
-            jac=jac,
-            jdot_qdot=(jac_dot @ m.qvel[..., None])[..., 0],
-            mass=m.mass,
-            bias=m.bias,
-        )
+        return sims.period_measurement(m)
 
     def advance(self, m: sims.Measured):
         """(state, torques, wrench) of rows [0, n) after this period: `period.advance` on their
@@ -380,8 +383,9 @@ class Lane:
 
 
 def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
-              observer=None, profile=None) -> None:  # fmt: skip
-    """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
+              observer=None, profile=None, compiled: bool = False) -> None:  # fmt: skip
+    """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process;
+    compiled: their periods compiled (`engines/compiled.py`), else in NumPy.
 
     The simulations of this call's scenes are kept for the next call, the others dropped.
     """
@@ -390,7 +394,11 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
         key = sims.scene_key(specs, index)
         count[key] = count.get(key, 0) + 1
     nsim = {key: min(slots, c) for key, c in count.items()}
-    lanes = [Lane(specs, params, config, slots, nsim, kind, profile) for _ in range(threads)]
+    kind_of_lane = Lane
+    if compiled:
+        from mjx_peg.engines.compiled import CompiledLane as kind_of_lane
+    lanes = [kind_of_lane(specs, params, config, slots, nsim, kind, profile)
+             for _ in range(threads)]  # fmt: skip
     errors: list[BaseException] = []
 
     def work(lane, report=False):
@@ -441,6 +449,7 @@ def run_trials(
     batch_threads: int | None = None,
     persistent: bool | None = None,
     profile: Callable[[str, float], None] | None = None,
+    compiled: bool | None = None,
 ) -> TrialResult:
     """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_trials`' options;
     params batched and validated)."""
@@ -456,5 +465,6 @@ def run_trials(
     queue = Queue(n, progress)
     kind = (batch_threads, None if persistent is None else bool(persistent))
     if n:
-        run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile)
+        run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile,
+                  COMPILED if compiled is None else bool(compiled))  # fmt: skip
     return to_result(queue.records)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
+
 from mjx_peg.engines import lanes
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.errors import UsageError
@@ -31,6 +33,7 @@ def run_trials(
     processes: int | None = None,
     ray: str | None = None,
     profile: Callable[[str, float], None] | None = None,
+    compiled: bool | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -52,7 +55,14 @@ def run_trials(
     each) of `threads` lanes each (default 1); None (the default): lanes in this process.
     ray: run them on the Ray cluster at this address, one lane per CPU (`engines/ray_pool.py`:
     "auto", "local" or HOST:PORT); the same results.
+    compiled: each lane's control period compiled by XLA (`engines/compiled.py`: the same
+    functions, float64, in XLA's order of operations) or the NumPy pass (the reference, and the
+    robot's); default `lanes.COMPILED`. Either gives the same results whatever the lanes, slots,
+    processes or cluster; the two agree to rounding, which contact can grow into a different
+    trajectory (BENCHMARKS.md, "The compiled period").
     """
+    if compiled is not None and not isinstance(compiled, (bool, np.bool_)):
+        raise UsageError(f"compiled must be True or False, got {compiled!r}")
     if workers is not None and threads is not None and workers != threads:
         raise UsageError(f"threads ({threads}) and workers ({workers}) name the same option")
     threads = threads if threads is not None else workers
@@ -69,7 +79,7 @@ def run_trials(
 
         return ray_pool.run_trials(
             specs, params, config, ray, progress=progress, slots_per_thread=slots_per_thread,
-            batch_threads=batch_threads, persistent=persistent,
+            batch_threads=batch_threads, persistent=persistent, compiled=compiled,
         )  # fmt: skip
     if processes is not None:
         processes = lanes.count("processes", processes, 1)
@@ -81,9 +91,10 @@ def run_trials(
         return worker_processes.run_trials(
             specs, params, config, processes, threads=threads, progress=progress,
             slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
+            compiled=compiled,
         )  # fmt: skip
     return lanes.run_trials(
         specs, params, config, threads=threads, slots_per_thread=slots_per_thread,
         progress=progress, observer=observer, batch_threads=batch_threads, persistent=persistent,
-        profile=profile,
+        profile=profile, compiled=compiled,
     )  # fmt: skip

@@ -175,11 +175,13 @@ def result(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos,
 
 
 def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
-            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
+            state: TrialState, meas: PeriodMeasurement, going=None):  # fmt: skip
     """(state, torques (..., n), wrench (..., 6)): one period of trials that go on.
 
     wrench: what the compliance sees (goal frame, at the tcp), after the F/T pipeline and the
-    damping. On NumPy the chatter ring is written in place (`array_api.ring_write`).
+    damping. The chatter ring is written in place on NumPy (`array_api.ring_write`), and only
+    for the trials `going` (...,) bool (None: all), so that the ring of a trial that ends keeps
+    its result's chatter.
     """
     xp = namespace_of(meas.ft, meas.qvel)
     step, goal_rot = state.step, consts.skill.goal_rot
@@ -191,7 +193,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     # Chatter: |F_k - F_(k-1)| of the true axial force (the world force along goal z).
     f_world = xp.sum(meas.ft_rot * true[..., None, :3], axis=-1)
     axial = xp.sum(goal_rot[..., :, 2] * f_world, axis=-1)
-    ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), step >= 1)
+    written = step >= 1 if going is None else (step >= 1) & going
+    ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), written)
     lever = meas.ft_pos - meas.tcp_pos
     wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
     a = config.coupling_pole
@@ -231,9 +234,10 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
 def period(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
     """(ends, state, torques, wrench): `ends` then `advance` at one measurement. The state and
-    torques of a trial that ended are those it would have had: the caller keeps or drops them."""
+    torques of a trial that ended are those it would have had (but its chatter ring, as it was):
+    the caller keeps or drops them."""
     end = ends(config, consts, state, meas.tip_pos, meas.qvel)
-    return (end, *advance(config, control, basis, consts, state, meas))
+    return (end, *advance(config, control, basis, consts, state, meas, ~end.ended))
 
 
 __all__ = [
