@@ -39,6 +39,14 @@ def slot_count(slots: int) -> int:
     return -(-slots // 64) * 64
 
 
+def drained_count(rows: int, size: int) -> int:
+    """The slot count a lane of `size` slots moves to when only `rows` are left (its source has
+    run dry): the power of two that holds them (at least 32) once it is a quarter of `size` or
+    less, else `size`. A period costs about its slot count, whatever the rows left."""
+    fit = max(32, 1 << max(rows - 1, 0).bit_length())
+    return fit if fit <= size // 4 else size
+
+
 def _start(config: TrialConfig, consts: period.TrialConsts) -> period.TrialState:
     """`period.start` with strong types (its infinities are weakly typed: each program would be
     traced again for the state its previous call returned)."""
@@ -59,6 +67,7 @@ class Programs:
             self.basis = Basis(*(jnp.asarray(a) for a in fitted_basis(config.movement)))
         self.period = jax.jit(self._period, donate_argnums=(1,))
         self.load = jax.jit(self._load, donate_argnums=(0, 1))
+        self.take = jax.jit(lambda tree, slots: jax.tree.map(lambda a: a[slots], tree))
 
     def _period(self, consts, state, rows: sims.Measured, row_of_slot, slot_of_row, live):
         """One period of every slot: (state, ended, steps, outcome, torques, wrench), all but
@@ -135,8 +144,23 @@ class CompiledLane(lanes.Lane):
         pass
 
     def _join(self, new: list, keep: np.ndarray, order: np.ndarray) -> None:
+        assert len(new) <= len(self._free_slots), "more trials than free slots"
         slots = np.concatenate([self.slot[keep], [self._free_slots.pop() for _ in new]])
         self.slot = slots.astype(np.int64)[order]
+        size = drained_count(len(self.slot), self.size) if not new else self.size
+        with jax.enable_x64(True):
+            if new:
+                self._load(new, slots[len(keep) :])
+            if size < self.size:  # the rows left into slots 0..n-1 of fewer slots
+                take = np.zeros(size, dtype=np.int32)
+                take[: len(self.slot)] = self.slot
+                self._buffers = self.programs.take(self._buffers, take)
+                self.size, self.slot = size, np.arange(len(self.slot))
+                self._free_slots = list(range(size - 1, len(self.slot) - 1, -1))
+            self._index = self._slot_index()
+
+    def _slot_index(self):
+        """(row_of_slot, slot_of_row, live) of the rows' slots, (S,) each."""
         n = len(self.slot)
         row_of_slot = np.zeros(self.size, dtype=np.int32)
         row_of_slot[self.slot] = np.arange(n)
@@ -144,10 +168,7 @@ class CompiledLane(lanes.Lane):
         slot_of_row[:n] = self.slot
         live = np.zeros(self.size, dtype=bool)
         live[self.slot] = True
-        with jax.enable_x64(True):
-            self._index = tuple(jnp.asarray(a) for a in (row_of_slot, slot_of_row, live))
-            if new:
-                self._load(new, slots[len(keep) :])
+        return tuple(jnp.asarray(a) for a in (row_of_slot, slot_of_row, live))
 
     def _load(self, new: list, slots: np.ndarray) -> None:
         """The constants of new trials into their slots, their state at the start."""

@@ -5,8 +5,9 @@ reading one physics step old):
 
 1. `ends`: the end tests at this measurement: success (tip through the hole, near the table),
    unstable (joints beyond `max_joint_speed`, NaN, or the engine's own physics check), the
-   protective stop (set by an earlier period's sensed force), settled (`trial.settle_update`),
-   out of time; success needs neither of the failures.
+   protective stop (set by an earlier period's sensed force), settled (`trial.settle_update`, or
+   withdrawn by the search: `search.search_withdrawn`), out of time; success needs neither of the
+   failures.
 2. `advance`, for a trial that goes on: the F/T pipeline (`skill.sensor`) on the tared reading;
    the contact metrics (peak sensed force, the 150 N protective stop, the chatter ring of the
    true axial force); the compliance damping W_k = a_c W_(k-1) + (1 - a_c) F_k (Eq. 4 with
@@ -44,7 +45,7 @@ from mjx_peg.skill.control_step import (
     skill_torque,
     wrench_to_goal,
 )
-from mjx_peg.skill.search import aligned_rotation, spiral_state
+from mjx_peg.skill.search import aligned_rotation, search_withdrawn, spiral_state
 
 
 class TrialConsts(NamedTuple):
@@ -155,7 +156,11 @@ def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, q
         unstable = unstable | ~physics_ok
     stop = state.stop
     success = inside & ~stop & ~unstable
-    settled = is_settled(state.settle, config) & ~inside & ~unstable & ~stop
+    # Settled: at rest or repeating the same motion, or withdrawn by the search for a settle
+    # window (skill.search); either way the outcome can no longer change.
+    withdrawn = search_withdrawn(config.search, state.spiral, config.settle_window_s)
+    settled = (is_settled(state.settle, config) | (withdrawn & config.end_settled)) & ~inside
+    settled = settled & ~unstable & ~stop
     ended = success | unstable | stop | settled | (state.step >= config.max_steps)
     return Ends(success, unstable, settled, ended)
 
