@@ -99,13 +99,16 @@ def test_replay_failure_finds_a_failure_and_plots_its_replay(tmp_path):
 def test_trials_benchmark_prints_its_table_and_the_profile(tmp_path):
     out = run_script("benchmarks/trials.py", "--trials", 4, "--time-limit", 0.2, "--threads", 1,
                      "--repeat", 1, "--mjx-trials", 0, "--replay-every", 25)  # fmt: skip
-    assert "| mujoco | " in out and "| bare mj_step (ceiling) |" in out
-    assert "profile of one lane (threads=1), µs per env-step:" in out
+    assert "| bare mj_step (ceiling) |" in out and "| bare `Batch.step` |" in out
+    for name in ("numpy", "compiled"):
+        assert f"| mujoco, {name} pass, lanes as threads | " in out
+        assert f"profile of one lane (threads=1), {name} pass, µs per env-step:" in out
     from mjx_peg.engines.lanes import PROFILE_STAGES
 
     for stage in PROFILE_STAGES:
         assert f"  {stage}: " in out
     assert "100 control periods, 4.0 trials each on average" in out  # 0.2 s, 4 slots
+    assert re.search(r"\*\*\d+ %\*\* of `Batch.step`", out)
 
 
 def test_the_profile_hook_sees_every_stage_and_changes_no_result():

@@ -1,17 +1,12 @@
-"""The CPU engine's control period compiled by XLA: the lane's pass without the GIL.
+"""The CPU engine's control period compiled by XLA: the NumPy pass's functions, jitted.
 
-The same functions as the NumPy pass (`period.ends`, `period.result`, `period.advance`, and
-`sims.period_measurement` with its Jacobians), jitted on the CPU in float64, over a fixed number
-of slots per lane, so that trials ending and starting never recompile. A trial keeps its slot
-from start to end: its constants and state stay in XLA's buffers (updated in place, the chatter
-ring included); the period's measurement goes in (in the lane's row order, padded to the slot
-count), the torques, the end tests and the ended trials' outcomes come out, in one call per
-period. A slot whose trial ended takes its next trial after the call (a second program loads its
-constants), and the new trial's first period is the lane's next: each trial's periods are the
-NumPy lane's, one lane period later.
-
-float64, as the NumPy pass: `jax.enable_x64` in the lane's thread only (a context, not the
-process's setting), so that a Brax PPO run in float32 in the same process keeps its float32.
+One call per period runs `period.ends`, `period.result`, `period.advance` and
+`sims.period_measurement` (the Jacobians) in float64 over a lane's slots: each trial keeps a slot
+of XLA's buffers (its constants and state, updated in place) from start to end; the measurement
+goes in, the torques and the ended trials' outcomes come out. A slot freed takes its next trial
+after the call, whose first period is the lane's next. float64 holds in the lane's thread only
+(`jax.enable_x64`): a Brax PPO run in float32 in the same process keeps float32. Design and
+measurements: docs/design/compiled_period.md.
 """
 
 from __future__ import annotations
@@ -32,8 +27,8 @@ LOAD_ROWS = 16  # new trials' constants per load call
 
 def slot_count(slots: int) -> int:
     """The compiled programs' slot count for a lane of `slots` rows: 32 or 64, then a multiple
-    of 64 (few sizes to compile, little padding). Not fewer than 32: XLA vectorizes a batch of 8
-    otherwise, and a sum can round differently in the last bit."""
+    of 64 (few sizes to compile, little padding; from 32 up a trial's numbers do not depend on
+    it: docs/design/compiled_period.md)."""
     if slots <= 32:
         return 32
     return -(-slots // 64) * 64

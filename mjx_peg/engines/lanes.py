@@ -21,6 +21,7 @@ no clock. It only reads the clock: the results are the same with it.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -52,8 +53,10 @@ mujoco_log.install()
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
 SLOTS_PER_THREAD = 512
 
-# The control period's pass by default: compiled by XLA (`engines/compiled.py`), or NumPy.
-COMPILED = False
+# The environment variable that names the control period's pass of a call that names none:
+# "compiled" (XLA, `engines/compiled.py`; the default) or "numpy" (the reference).
+PASS_VARIABLE = "MJX_PEG_CONTROL_PASS"
+PASSES = ("compiled", "numpy")
 
 # One finished trial.
 RESULT_DTYPE = np.dtype(
@@ -429,6 +432,14 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
     interrupt.check()  # the lanes stopped early: their results are incomplete
 
 
+def default_compiled() -> bool:
+    """Whether a call that names no pass runs compiled (PASS_VARIABLE, default compiled)."""
+    value = os.environ.get(PASS_VARIABLE, "compiled")
+    if value not in PASSES:
+        raise UsageError(f"{PASS_VARIABLE} must be one of {', '.join(PASSES)}, got {value!r}")
+    return value == "compiled"
+
+
 def count(name: str, value, default: int) -> int:
     """`value` as a positive integer option called `name`, `default` for None."""
     if value is None:
@@ -466,5 +477,5 @@ def run_trials(
     kind = (batch_threads, None if persistent is None else bool(persistent))
     if n:
         run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile,
-                  COMPILED if compiled is None else bool(compiled))  # fmt: skip
+                  default_compiled() if compiled is None else bool(compiled))  # fmt: skip
     return to_result(queue.records)

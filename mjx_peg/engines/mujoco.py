@@ -57,11 +57,14 @@ def run_trials(
     "auto", "local" or HOST:PORT); the same results.
     compiled: each lane's control period compiled by XLA (`engines/compiled.py`: the same
     functions, float64, in XLA's order of operations) or the NumPy pass (the reference, and the
-    robot's); default `lanes.COMPILED`. Either gives the same results whatever the lanes, slots,
-    processes or cluster; the two agree to rounding, which contact can grow into a different
-    trajectory (BENCHMARKS.md, "The compiled period").
+    robot's); default: compiled, unless the environment variable MJX_PEG_CONTROL_PASS says
+    numpy. Either gives the same results whatever the lanes, slots, processes or cluster; the two
+    agree to rounding, which contact can grow into a different trajectory (BENCHMARKS.md, "The
+    compiled period").
     """
-    if compiled is not None and not isinstance(compiled, (bool, np.bool_)):
+    if compiled is None:  # resolved here: workers and cluster nodes run this call's pass
+        compiled = lanes.default_compiled()
+    elif not isinstance(compiled, (bool, np.bool_)):
         raise UsageError(f"compiled must be True or False, got {compiled!r}")
     if workers is not None and threads is not None and workers != threads:
         raise UsageError(f"threads ({threads}) and workers ({workers}) name the same option")
