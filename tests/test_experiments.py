@@ -30,7 +30,7 @@ def test_fingerprint_runs_and_compares_bit_for_bit(tmp_path):
     done = subprocess.run([sys.executable, script, second, *tiny, "--compare", first],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "70 of 70 arrays bit-identical" in done.stdout
+    assert "80 of 80 arrays bit-identical" in done.stdout
 
 
 def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_path):
