@@ -7,7 +7,7 @@
     mjx-peg-vision evaluate --model runs/vision/model --data runs/vision/data/test \
         --out runs/vision/eval/test
     mjx-peg-vision localize IMAGE.png --camera CALIB.json [--model runs/vision/model]
-    mjx-peg-vision act --policy paper --skill spiral --out runs/vision/act
+    mjx-peg-vision act --policy paper --out runs/vision/act
     mjx-peg-vision figures --model runs/vision/model --data runs/vision/data/test
 
 `evaluate`, `localize`, `act` and `figures` read the shipped localizer (`policies/localizer`)

@@ -3,6 +3,7 @@ safety stops, the policy's numbers, no JAX, and one-line errors."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -22,7 +23,7 @@ from mjx_peg.robot.runtime import (
 )
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SKILLS, NamedSkill, skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -277,7 +278,6 @@ def test_the_manifest_says_how_actions_become_numbers(tmp_path):
     """A centred-map policy decodes around its recorded centre; a manifest written before the
     centred map (no "map") decodes with the sigmoid map, as it was trained; an unknown map or a
     centre on a range's edge is one PolicyError."""
-    import json
 
     from mjx_peg.policy.export import PolicyError
     from mjx_peg.skill.params import controller_from_action, vector_from_controller
@@ -340,6 +340,9 @@ def test_cli_runs_and_reports(tmp_path, capsys):
     assert "baseline on the simulated arm at 250 Hz commands, circle 50 mm" in out
     rows = (tmp_path / "runs.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[1].split(",")[3] == "125"  # 0.5 s at 250 Hz, not inserted
+    # the skill the trials ran, every constant: the baseline's, the paper's
+    skill = json.loads((tmp_path / "skill.json").read_text())
+    assert skill == NamedSkill("paper", SKILLS["paper"]).record()
 
 
 @pytest.mark.parametrize(
