@@ -20,10 +20,9 @@ finds here what it meant:
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Mapping
-
-import numpy as np
 
 # The skill's constants of a file that names its skill only (None): the named skill's.
 EVAL_CONFIG = {
@@ -102,6 +101,7 @@ def manifest_skill(manifest: Mapping) -> dict:
 def range_results(arrays: dict) -> dict:
     """One evaluation range's saved results (NumPy arrays) with `settled` if it predates it."""
     if "success" in arrays and "settled" not in arrays:
+        np = importlib.import_module("numpy")  # not at the top: skill/ reads FORMER_SKILLS
         arrays["settled"] = np.zeros(np.shape(arrays["success"]), bool)
     return arrays
 
@@ -110,5 +110,6 @@ def spec_arrays(arrays: Mapping):
     """TrialSpec arrays with the board's height and tilt (zero) if they predate them."""
     if "board_height" in arrays or "shape_id" not in arrays:
         return arrays
+    np = importlib.import_module("numpy")
     n = np.shape(arrays["shape_id"])[0]
     return {**arrays, "board_height": np.zeros(n), "board_tilt": np.zeros((n, 2))}
