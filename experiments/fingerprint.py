@@ -7,8 +7,8 @@ commits and compare, to show a change left the trial's behaviour as it was.
 The batch: 48 trials (circle, square, triangle 50 mm, ±4 mm / ±6 deg, randomized sensor draws)
 with the baseline's 38 numbers each scaled by U(0.8, 1.2), under seven trial configs (nominal,
 protective stops at 60 N, loose settle tolerances, a 0.3 rad/s speed limit, every failure to the
-limit, a 125 Hz / 25 Hz / 3-period sensor), and 24 zero-error trials; `--compare` lists the
-arrays that differ (exit 1 if any).
+limit, a 125 Hz / 25 Hz / 3-period sensor, the spiral skill), and 24 zero-error trials;
+`--compare` lists the arrays that differ (exit 1 if any).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from mjx_peg.engines import mujoco as engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import skill_config
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 SHAPES = ("circle", "square", "triangle")
@@ -39,6 +40,7 @@ def variants(scale: float) -> dict[str, TrialConfig]:
         "no_settle": TrialConfig(time_limit_s=long, end_settled=False),
         "slow_sensor": TrialConfig(time_limit_s=8.0 * scale, sensor=sensor.SensorConfig(
             rate_hz=125.0, cutoff_hz=25.0, delay_steps=3)),
+        "spiral": TrialConfig(time_limit_s=long, search=skill_config("spiral")),
     }  # fmt: skip
 
 

@@ -24,6 +24,8 @@ from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
 from mjx_peg.robot import cli as robot_cli
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+from mjx_peg.vision import cli as vision_cli
 from mjx_peg.world import scene_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -596,3 +598,17 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
         _, err = done.communicate(timeout=900)
         assert done.returncode == 0, err[-2000:]
     assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "main, argv",
+    [(eval_cli.main, []), (train_cli.main, []), (baseline_cli.main, []), (robot_cli.main, []),
+     (vision_cli.main, ["act"])],
+)  # fmt: skip
+def test_every_skill_option_describes_both_skills(main, argv, capsys):
+    """--skill offers the two skills a user chooses between, and its help says what each is."""
+    assert main([*argv, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--skill {paper,spiral}" in text
+    for name, description in SKILL_DESCRIPTIONS.items():
+        assert f"{name}: {description}" in text

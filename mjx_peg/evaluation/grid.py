@@ -37,7 +37,7 @@ from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.export import POLICY_FILE, load_policy
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy, shipped_names
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_config
+from mjx_peg.skill.search import SkillConfig, constants_record, named_skill, skill_description
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
@@ -106,8 +106,12 @@ class EvalConfig:
     contact_model: int = CONTACT_MODEL
     # Where the grasp errors go (constants.GRASP_MODELS): "board", the paper's, or "flange"
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours
     skill: str = "paper"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one: a rerun with other constants is
+    # refused, not resumed.
+    skill_constants: SkillConfig | None = None
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -138,7 +142,8 @@ class EvalConfig:
             raise UsageError(
                 f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
             )
-        skill_config(self.skill)  # a known skill
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         if not isinstance(self.full_time_limit, bool):
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
@@ -151,7 +156,7 @@ class EvalConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
         )
 
     @property
@@ -166,8 +171,11 @@ class EvalConfig:
 
     def to_json(self) -> dict:
         return {
-            f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
-            for f in dataclasses.fields(self)
+            **{
+                f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
+                for f in dataclasses.fields(self)
+            },
+            "skill_constants": constants_record(self.skill_constants),
         }
 
 
@@ -292,7 +300,7 @@ def _recorded(doc: dict) -> dict:
     ValueError if it is not an evaluation's."""
     if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
         raise ValueError(f"no {SCHEMA} config")
-    return file_versions.eval_config(doc["config"])
+    return EvalConfig(**file_versions.eval_config(doc["config"])).to_json()
 
 
 def prepare_out_dir(
@@ -501,7 +509,8 @@ def _header(out: Path, config: EvalConfig, grid: es.GridTable, policy_label: str
             else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
         ),
         f"grasp errors: {GRASP_DESCRIPTION[config.grasp_model]}",
-        f"skill: {config.skill} ({SKILL_DESCRIPTIONS[config.skill]})",
+        f"skill: {config.skill} ({skill_description(config.skill)}; its constants in "
+        f"{CONFIG_FILE})",
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,
