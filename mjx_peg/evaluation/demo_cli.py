@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS, frame_strip, plot_trial, run_demo
@@ -195,16 +195,16 @@ def main(argv=None) -> int:
         specs, vector, config, label, recorded = trial_from_eval(args)
     # The output location, before any work: never an input, nothing replaced without --force.
     policy = None if args.replay is not None else args.policy
-    cli.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
+    outdir.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
     outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
     if args.out.is_dir() and not args.force:
-        cli.refuse_or_move(outputs, False, PROG)
+        outdir.refuse_or_move(outputs, False)
     if args.frames:
         from mjx_peg.world import render
 
         render.check_backend()  # or one line: before the trial runs
-    cli.prepare_dir(args.out)
-    cli.refuse_or_move(outputs, args.force, PROG)
+    outdir.prepare_dir(args.out)
+    outdir.refuse_or_move(outputs, args.force, lambda text: cli.note(PROG, text))
     if args.frames:
         from mjx_peg.world import gl
 
@@ -214,13 +214,13 @@ def main(argv=None) -> int:
 
     mujoco_log.send_to(args.out)
     run = run_demo(specs, vector, config, args.frames)
-    cli.write_atomic(outputs[0], lambda path: plot_trial(run, path))
+    outdir.write_atomic(outputs[0], lambda path: plot_trial(run, path))
     wrote = [outputs[0].name]
     strip = frame_strip(run, args.frames) if args.frames else None
     if strip is not None:
         from mjx_peg.world.render import save_png
 
-        cli.write_atomic(outputs[1], lambda path: save_png(path, strip))
+        outdir.write_atomic(outputs[1], lambda path: save_png(path, strip))
         wrote.append(outputs[1].name)
     print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:

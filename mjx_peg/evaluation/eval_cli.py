@@ -2,7 +2,7 @@
 
     python eval.py --policy runs/quick --grid paper-small --out eval/quick
 
-Parses and checks the flags, holds --out (`cli.exclusive`), runs or resumes the grid and writes
+Parses and checks the flags, holds --out (`outdir.exclusive`), runs or resumes the grid and writes
 its outputs; every rule of the grid itself lives in `evaluation/grid.py`.
 """
 
@@ -15,7 +15,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES, resolve_engine
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation import stats as es
@@ -34,7 +34,6 @@ from mjx_peg.evaluation.grid import (
     grid_axes,
     load_controller,
     load_evaluation_grid,
-    parse_ranges,
     prepare_out_dir,
     range_path,
     run_evaluation,
@@ -167,8 +166,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
     """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
-    linear = None if args.linear_mm is None else parse_ranges(args.linear_mm, "--linear-mm")
-    angular = None if args.angular_deg is None else parse_ranges(args.angular_deg, "--angular-deg")
+    linear = None if args.linear_mm is None else cli.parse_ranges(args.linear_mm, "--linear-mm")
+    angular = (
+        None if args.angular_deg is None else cli.parse_ranges(args.angular_deg, "--angular-deg")
+    )
     linear, angular, trials = grid_axes(
         args.grid, args.size, linear, angular, linear_absolute=args.linear_absolute
     )
@@ -237,8 +238,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         paper_name = es.paper_condition_for(config.shapes, config.size_mm)
     elif paper_name == "none":
         paper_name = None
-    cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    with cli.exclusive(out):
+    outdir.check_apart(out, {"--policy": policy, "--compare": args.compare})
+    with outdir.exclusive(out):
         if args.ray is not None:  # join the cluster before anything is written
             from mjx_peg.engines import ray_pool
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli, file_versions
+from mjx_peg import errors, file_versions, outdir
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
@@ -204,54 +204,6 @@ def grid_axes(
     return tuple(round(v * scale, 9) for v in linear), angular, trials
 
 
-def parse_ranges(text: str, name: str, limit: int = cli.MAX_AXIS) -> tuple[float, ...]:
-    """'0.5,1,2' or 'START:STOP:STEP' (inclusive) or a mix -> the values; ValueError if empty,
-    not finite or more than `limit` values (counted before any is made)."""
-    values: list[float] = []
-    try:
-        for item in (s.strip() for s in text.split(",")):
-            if not item:
-                continue
-            parts = [float(p) for p in item.split(":")]
-            if not all(math.isfinite(v) for v in parts) or len(parts) not in (1, 3):
-                raise ValueError
-            if len(parts) == 3:
-                start, stop, step = parts
-                if not step > 0:
-                    raise UsageError(f"{name}: step of {item!r} must be positive")
-                count = (stop - start) / step + 1e-9
-                if count + 1 + len(values) > limit:
-                    raise UsageError(
-                        f"{name}: {item!r} gives more than {limit:,} values, the most a grid axis "
-                        "takes"
-                    )
-                count = math.floor(count) + 1
-                values += [round(start + k * step, 9) for k in range(max(count, 0))]
-            else:
-                values.append(parts[0])
-            if len(values) > limit:
-                raise UsageError(f"{name}: more than {limit:,} values, the most a grid axis takes")
-    except ValueError as exc:
-        if str(exc).startswith(name):
-            raise
-        shown = text if len(text) <= 40 else text[:37] + "..."
-        raise UsageError(f"{name}: cannot read {shown!r} (give 0.5,1,2 or 1:8:1)") from None
-    if not values:
-        raise UsageError(f"{name} is empty: give comma-separated values or START:STOP:STEP")
-    seen, repeated = set(), []
-    for v in values:
-        if v in seen and v not in repeated:
-            repeated.append(v)
-        seen.add(v)
-    if repeated:
-        shown = ", ".join(f"{v:g}" for v in repeated[:3]) + (", ..." if len(repeated) > 3 else "")
-        raise UsageError(
-            f"{name} repeats {len(repeated):,} value{'s' * (len(repeated) > 1)} ({shown}): ranges "
-            "are rounded to 1e-9, give distinct values"
-        )
-    return tuple(values)
-
-
 # ---------------------------------------------------------------------------------------------
 # Policies: 38 controller numbers per trial.
 
@@ -318,7 +270,7 @@ def prepare_out_dir(
         shipped = path.parent == SHIPPED_DIR and path.name in shipped_names()
         doc["policy_dir"] = path.name if shipped else str(path)
     out.prepare(plan, doc, note)
-    cli.prepare_dir(out.path / RANGES_DIR)
+    outdir.prepare_dir(out.path / RANGES_DIR)
     return out.path
 
 
@@ -358,7 +310,7 @@ def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarra
             raise UsageError(f"{wrong[0]} does not hold {config.trials} trials")
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
         raise UsageError(
-            f"{path} is corrupt or truncated ({type(e).__name__}: {cli.message(e)}); delete it "
+            f"{path} is corrupt or truncated ({type(e).__name__}: {errors.message(e)}); delete it "
             "and rerun the same command to run that range again"
         ) from None
     return arrays
@@ -541,7 +493,7 @@ def write_outputs(
 
     out = Path(out_dir)
     grid = grid_table(out, config)
-    cli.write_atomic(out / GRID_FILE, grid.csv_text())
+    outdir.write_atomic(out / GRID_FILE, grid.csv_text())
     what = f"{', '.join(config.shapes)}, S = {config.size_mm:g} mm, N = {config.trials}"
     plots.success_heatmap(grid, out / SUCCESS_PNG, f"Success rate (%): {what}")
     plots.time_heatmap(grid, out / TIME_PNG, f"Mean time to complete (s): {what}")
@@ -550,7 +502,7 @@ def write_outputs(
         plots.paper_bars(grid, paper, out / PAPER_PNG, f"{what}; paper: {paper.title}")
     header = _header(out, config, grid, policy_label)
     text = es.summary_markdown(grid, header, paper_name, other, other_name, alternative)
-    cli.write_atomic(out / SUMMARY_FILE, text + _failures_section(out, config))
+    outdir.write_atomic(out / SUMMARY_FILE, text + _failures_section(out, config))
     return grid
 
 

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from mjx_peg import cli  # noqa: E402
+from mjx_peg import outdir  # noqa: E402
 from mjx_peg.evaluation.stats import (  # noqa: E402
     QUARTERS,
     GridTable,
@@ -175,6 +175,6 @@ def quarter_stats_by_metric(grid: GridTable) -> dict[str, tuple[list, list, list
 
 def _save(fig, path) -> Path:
     try:
-        return cli.write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120))
+        return outdir.write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120))
     finally:
         plt.close(fig)

@@ -17,7 +17,7 @@ import argparse
 import os
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS
@@ -173,7 +173,7 @@ def main(argv=None) -> int:
         }
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
-        cli.check_apart(out, {"--init-from": config.init_from})
+        outdir.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
         join_distributed()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
@@ -297,9 +297,9 @@ def run_act(
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-    cli.write_atomic(out / "trials.csv", table.getvalue())
-    cli.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    cli.write_atomic(out / "summary.md", summary_markdown(summary))
+    outdir.write_atomic(out / "trials.csv", table.getvalue())
+    outdir.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    outdir.write_atomic(out / "summary.md", summary_markdown(summary))
     return summary
 
 

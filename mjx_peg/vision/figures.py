@@ -31,7 +31,7 @@ def _save(fig, path: Path, dpi: int) -> Path:
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    from mjx_peg import cli
+    from mjx_peg import outdir
 
     def write(tmp: Path) -> None:
         fig.savefig(tmp, dpi=dpi, format="png")
@@ -40,7 +40,7 @@ def _save(fig, path: Path, dpi: int) -> Path:
         paletted.save(tmp, format="PNG", optimize=True)
 
     try:
-        return cli.write_atomic(path, write)
+        return outdir.write_atomic(path, write)
     finally:
         plt.close(fig)
 

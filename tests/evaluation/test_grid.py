@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mjx_peg import cli
 from mjx_peg.evaluation import eval_cli
 from mjx_peg.evaluation import grid as evaluation
 from mjx_peg.evaluation import stats as es
@@ -241,14 +242,14 @@ def test_heatmaps_are_written(tmp_path):
 
 
 def test_parse_ranges():
-    assert evaluation.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
-    assert evaluation.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
-    assert len(evaluation.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
+    assert cli.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
+    assert cli.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
+    assert len(cli.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
     for bad in ("", " , ", "3:1:1"):
         with pytest.raises(ValueError, match="--linear-mm is empty"):
-            evaluation.parse_ranges(bad, "--linear-mm")
+            cli.parse_ranges(bad, "--linear-mm")
     with pytest.raises(ValueError, match="cannot read"):
-        evaluation.parse_ranges("1,x", "--linear-mm")
+        cli.parse_ranges("1,x", "--linear-mm")
 
 
 def test_range_specs_depend_only_on_seed_and_index():
