@@ -19,7 +19,7 @@ from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
-from mjx_peg.evaluation.grid import load_controller
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.policy.export import policy_skill
 from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world.constants import GRASP_MODELS

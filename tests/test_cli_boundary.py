@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from mjx_peg import cli as shared
-from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli
-from mjx_peg.evaluation import grid as evaluation
+from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli, eval_dir, runner
+from mjx_peg.evaluation import config as eval_config
 from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
@@ -218,7 +218,7 @@ def test_eval_corrupt_range_file_is_one_line_naming_it(tmp_path, capsys, monkeyp
     broken.write_bytes(broken.read_bytes()[:50])
     (out / "grid.csv").unlink()
     calls = []
-    monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(runner, "run_trials", lambda *a, **k: calls.append(1))
     capsys.readouterr()
     assert eval_cli.main([*EVAL, "--out", str(out)]) == 2
     _one_line(capsys, "eval.py", str(broken), "corrupt or truncated", "delete it")
@@ -470,9 +470,9 @@ def test_evaluation_config_json_is_recognised_by_its_schema(tmp_path):
     out = tmp_path / "e"
     out.mkdir()
     (out / "config.json").write_text(json.dumps({"config": {}}))
-    config = evaluation.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
+    config = eval_config.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
     with pytest.raises(ValueError, match="is not an evaluation config"):
-        evaluation.prepare_out_dir(out, config, force=True)
+        eval_dir.prepare_out_dir(out, config, force=True)
     assert (out / "config.json").exists()
 
 

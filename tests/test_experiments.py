@@ -66,17 +66,19 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
 
 
 def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):
-    from mjx_peg.evaluation import grid
+    from mjx_peg.evaluation.config import EvalConfig
+    from mjx_peg.evaluation.eval_dir import prepare_out_dir
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
 
     dirs = {}
     for full in (False, True):
-        config = grid.EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
-                                 angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
-                                 size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
+        config = EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
+                            angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
+                            size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
         out = dirs[full] = tmp_path / ("full" if full else "early")
-        grid.prepare_out_dir(out, config, None)
-        _, controller = grid.load_controller("baseline")
-        assert grid.run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
+        prepare_out_dir(out, config, None)
+        _, controller = load_controller("baseline")
+        assert run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
     report = tmp_path / "BENCHMARKS.md"
     report.write_text("# Benchmarks\n\n## Early ending\n\nold\n\n## Next\n\nkept\n")
     out = run_script("experiments/early_ending.py", dirs[False], dirs[True], "--write", report)

@@ -34,6 +34,7 @@ RANKS = {
 }
 PEER_IMPORTS: set[tuple[str, str]] = {
     ("vision", "robot"),  # the localizer returns robot.runtime.HoleEstimate
+    ("vision", "evaluation"),  # vision-to-action trials are compared by evaluation.stats
 }
 
 # Modules the robot's computer runs: importable with neither JAX nor MuJoCo installed.
@@ -133,7 +134,7 @@ def is_command_line(module: str) -> bool:
 def test_only_command_line_modules_import_the_cli_module():
     """The library writes through `outdir`; flag types and exit codes stay at the boundary."""
     library = [m for m in _modules() if not is_command_line(m)]
-    assert "mjx_peg.outdir" in library and "mjx_peg.evaluation.grid" in library
+    assert "mjx_peg.outdir" in library and "mjx_peg.evaluation.runner" in library
     found = [m for m in library if "mjx_peg.cli" in _imports(m)]
     assert found == [], f"library modules that import mjx_peg.cli: {found}"
 
@@ -167,13 +168,13 @@ def test_the_layer_check_catches_a_wrong_import():
     """A skill module importing the engines, or the robot importing the evaluation, is caught."""
     fake = {
         "mjx_peg.skill.dmp": {"mjx_peg.engines.trial"},
-        "mjx_peg.robot.runtime": {"mjx_peg.evaluation.grid", "mjx_peg.policy.export"},
+        "mjx_peg.robot.runtime": {"mjx_peg.evaluation.runner", "mjx_peg.policy.export"},
         "mjx_peg.world.task": {"mjx_peg.world.kinematics"},
     }
     found = layer_violations(list(fake), imports=fake.__getitem__)
     assert found == [
         "mjx_peg.skill.dmp -> mjx_peg.engines.trial",
-        "mjx_peg.robot.runtime -> mjx_peg.evaluation.grid",
+        "mjx_peg.robot.runtime -> mjx_peg.evaluation.runner",
     ]
 
 

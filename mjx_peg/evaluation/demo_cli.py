@@ -102,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _controller(policy: str):
-    from mjx_peg.evaluation.grid import load_controller
+    from mjx_peg.evaluation.runner import load_controller
 
     return load_controller(policy)
 
@@ -126,16 +126,17 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
 def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:
     """Like `trial_from_args` for trial --trial of range --range of the evaluation --replay,
     plus what the evaluation recorded for that trial."""
-    from mjx_peg.evaluation import grid as evaluation
+    from mjx_peg.evaluation import config as eval_config
+    from mjx_peg.evaluation import eval_dir
 
     given = ["--" + k.replace("_", "-") for k in _DEFAULTS if getattr(args, k) is not None]
     if given:
         raise UsageError(f"--replay takes the trial from the evaluation; drop {', '.join(given)}")
-    config, policy_dir = evaluation.read_eval_dir(args.replay)
+    config, policy_dir = eval_dir.read_eval_dir(args.replay)
     n_ranges = len(config.ranges)
     if args.range is None or not 0 <= args.range < n_ranges:
         raise UsageError(f"--replay needs --range between 0 and {n_ranges - 1}, got {args.range}")
-    recorded = evaluation.load_range(pathlib.Path(args.replay), config, args.range)
+    recorded = eval_dir.load_range(pathlib.Path(args.replay), config, args.range)
     if recorded is None:
         raise UsageError(f"range {args.range} of {args.replay} has not finished")
     if args.trial in ("failure", "success"):
@@ -150,7 +151,7 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
             f"--trial must be failure, success or an index below {config.trials}, "
             f"got {args.trial!r}"
         )
-    if config.contact_model < evaluation.CONTACT_MODEL:
+    if config.contact_model < eval_config.CONTACT_MODEL:
         raise UsageError(
             f"{args.replay} was evaluated before credible contact (another trial: no F/T "
             "pipeline, no protective stop); it cannot be replayed"
@@ -166,7 +167,7 @@ def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict
         raise UsageError(
             f"{policy}/policy.npz has changed since the evaluation ({config.policy[:19]})"
         )
-    specs = evaluation.range_specs(config, args.range)
+    specs = eval_config.range_specs(config, args.range)
     params = controller(specs)[index : index + 1]  # the whole range, as the evaluation computed it
     linear_mm, angular_deg = config.ranges[args.range]
     shape = constants.SHAPES[int(specs.shape_id[index])]

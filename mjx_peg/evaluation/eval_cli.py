@@ -1,9 +1,10 @@
-"""`python eval.py` (`mjx-peg-eval`): the command line of the evaluation grid (`grid.py`).
+"""`python eval.py` (`mjx-peg-eval`): the command line of the evaluation grid.
 
     python eval.py --policy runs/quick --grid paper-small --out eval/quick
 
 Parses and checks the flags, holds --out (`outdir.exclusive`), runs or resumes the grid and writes
-its outputs; every rule of the grid itself lives in `evaluation/grid.py`.
+its outputs; every rule of the grid itself lives in the evaluation's modules: `config` (the
+grids), `eval_dir` (the output directory), `runner` (the trials), `report` (the outputs).
 """
 
 from __future__ import annotations
@@ -18,32 +19,27 @@ from collections.abc import Sequence
 from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES, resolve_engine
 from mjx_peg.errors import UsageError
-from mjx_peg.evaluation import stats as es
-from mjx_peg.evaluation.grid import (
-    DEFAULT_CHUNK_TRIALS,
-    DEFAULT_SHAPES,
+from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS, MAX_ERROR, EvalConfig, grid_axes
+from mjx_peg.evaluation.eval_dir import (
     GRID_FILE,
-    GRIDS,
-    MAX_ERROR,
     PAPER_PNG,
-    PROG,
     SUCCESS_PNG,
     SUMMARY_FILE,
     TIME_PNG,
-    EvalConfig,
-    grid_axes,
-    load_controller,
     load_evaluation_grid,
     prepare_out_dir,
     range_path,
-    run_evaluation,
-    write_outputs,
 )
+from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS, paper_condition_for
+from mjx_peg.evaluation.report import write_outputs
+from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS, load_controller, run_evaluation
 from mjx_peg.policy.export import policy_skill
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import SKILLS
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES
+
+PROG = "eval.py"
 
 
 def check_engine_options(engine: str, options: dict) -> None:
@@ -157,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--paper",
         default="auto",
-        choices=("auto", *es.PAPER_CONDITIONS, "none"),
+        choices=("auto", *PAPER_CONDITIONS, "none"),
         help="the paper's numbers to print beside ours (auto: by shape and size)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -235,7 +231,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise UsageError(f"--compare {exc}") from None
     paper_name = args.paper
     if paper_name == "auto":
-        paper_name = es.paper_condition_for(config.shapes, config.size_mm)
+        paper_name = paper_condition_for(config.shapes, config.size_mm)
     elif paper_name == "none":
         paper_name = None
     outdir.check_apart(out, {"--policy": policy, "--compare": args.compare})

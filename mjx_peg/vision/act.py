@@ -34,6 +34,7 @@ import numpy as np
 
 from mjx_peg import outdir
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.evaluation.stats import mcnemar_p
 from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import Renderer, make_label
@@ -142,16 +143,6 @@ def controller_vectors(policy: str, specs: TrialSpec, shapes: list[str], sizes: 
         specs.hole_est_yaw,
     )
     return load_policy(policy).vectors_for(obs)
-
-
-def mcnemar_p(a: np.ndarray, b: np.ndarray) -> float:
-    """Two-sided exact McNemar p-value of paired successes a, b (bool arrays)."""
-    from scipy.stats import binomtest
-
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    if only_a + only_b == 0:
-        return 1.0
-    return float(binomtest(only_a, only_a + only_b, 0.5).pvalue)
 
 
 def run_act(
