@@ -9,7 +9,9 @@ from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 from mjx_peg.world.constants import SHAPES
-from mjx_peg.world.scene import build_mjcf, demo_pose, load_model
+from mjx_peg.world.mjcf import build_mjcf
+from mjx_peg.world.pose_solver import demo_pose
+from mjx_peg.world.scene import load_model
 
 PROG = "mjx-peg-scene"
 
