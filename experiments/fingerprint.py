@@ -58,12 +58,12 @@ def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange
     params = as_controller_params(scaled, trials)
     out = {}
     for name, config in variants(scale, skill).items():
-        result = engine.run_trials(specs, params, config, threads=2)
+        result = engine.run_on_cpu(specs, params, config, threads=2)
         out.update({f"{name}/{k}": v for k, v in result.to_arrays().items()})
         print(f"{name}: {result.summary()}")
     zero = TaskConfig(shapes=SHAPES, linear_error=0.0, angular_error=0.0)
     n = max(1, trials // 2)
-    result = engine.run_trials(sample_trials(zero, 7, n), as_controller_params(vector, n),
+    result = engine.run_on_cpu(sample_trials(zero, 7, n), as_controller_params(vector, n),
                                TrialConfig(time_limit_s=8.0 * scale, search=skill_config(skill)),
                                threads=1)  # fmt: skip
     out.update({f"zero/{k}": v for k, v in result.to_arrays().items()})

@@ -141,7 +141,7 @@ ANGULAR_DEG = number(0.0, 45.0, "deg")  # +- localization yaw and grasp tilt ran
 TIME_LIMIT_S = number(0.01, 600.0, "s")  # simulated time per trial (the paper's: 60 s)
 SEED = integer(0, 2**32 - 1)  # NumPy's and JAX's seeds
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
-WORKERS = integer(1, cores(), "the cores this process may use")  # engine worker processes
+THREADS = integer(1, cores(), "the cores this process may use")  # the CPU engine's lanes
 
 
 PROCESSES = integer(0, cores(), "0: lanes as threads of this process; at most the cores")

@@ -178,7 +178,7 @@ def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch)
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "1",
     "--trials", "1", "--time-limit", "0.05", "--shape", "square", "--engine", "mujoco",
-    "--workers", "1", "--no-progress",
+    "--threads", "1", "--no-progress",
 ]  # fmt: skip
 
 
@@ -315,13 +315,13 @@ def test_every_cli_refuses_bad_values_alike(prog, argv, message, tmp_path, capsy
 @pytest.mark.parametrize(
     "prog, argv",
     [
-        ("eval.py", ["--workers", "100000"]),
+        ("eval.py", ["--threads", "100000"]),
         ("eval.py", ["--chunk-trials", "0"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:50:1e-9", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:1e308:1e-308", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "paper", "--trials", "100000"]),
         ("train.py", ["--num-envs", "100000000"]),
-        ("train.py", ["--workers", "100000"]),
+        ("train.py", ["--threads", "100000"]),
         ("train.py", ["--processes", "100000"]),
         ("eval.py", ["--processes", "-1"]),
         ("train.py", ["--processes", "2", "--engine", "mjx"]),

@@ -128,9 +128,9 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
         seconds[stage] = seconds.get(stage, 0.0) + s
         calls[stage] = calls.get(stage, 0) + 1
 
-    plain = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2)
+    plain = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2)
     watch = lambda lane, rows, wrench: None  # noqa: E731  (the observer stage too)
-    timed = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2,
+    timed = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2,
                               profile=profile, observer=watch)  # fmt: skip
     for name, value in plain.to_arrays().items():
         assert value.tobytes() == timed.to_arrays()[name].tobytes(), name
@@ -138,7 +138,7 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
     assert (timed.steps == 100).all()  # 0.2 s each: on 2 slots, 3 rounds of 100 periods
     assert calls["step"] == calls["advance"] == calls["observer"] == 300
     with pytest.raises(ValueError, match="profile"):
-        engine.run_trials(specs, params, config, processes=1, profile=profile)
+        engine.run_on_cpu(specs, params, config, processes=1, profile=profile)
 
 
 # experiments/engines_agree.py runs in tests/engines/test_engines.py::test_engines_agree (one

@@ -10,14 +10,13 @@ grids), `eval_dir` (the output directory), `runner` (the trials), `report` (the 
 from __future__ import annotations
 
 import argparse
-import importlib
 import inspect
 import sys
 import time
 from collections.abc import Sequence
 
 from mjx_peg import cli, outdir
-from mjx_peg.engines import ENGINES, resolve_engine
+from mjx_peg.engines import ENGINES, engine_runner, resolve_engine
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS, MAX_ERROR, EvalConfig, grid_axes
 from mjx_peg.evaluation.eval_dir import (
@@ -43,9 +42,8 @@ PROG = "eval.py"
 
 
 def check_engine_options(engine: str, options: dict) -> None:
-    """ValueError unless the engine's run_trials takes every option by name."""
-    impl = importlib.import_module(f"mjx_peg.engines.{engine}")
-    params = inspect.signature(impl.run_trials).parameters
+    """UsageError unless the engine's runner (`engines.engine_runner`) takes every option."""
+    params = inspect.signature(engine_runner(engine)).parameters
     takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
     for key in options:
         if key in ("specs", "params", "config", "progress") or not (takes_any or key in params):
@@ -128,7 +126,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--threads", type=cli.integer(1, 64), help="engine option threads (if it takes it)"
     )
-    p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
     cli.add_processes_option(p, "--threads")
     cli.add_ray_option(p)
     p.add_argument(
@@ -218,9 +215,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
     if args.ray is not None:
-        options = cli.ray_options(args, config.engine, ("--threads", "--workers"))
+        options = cli.ray_options(args, config.engine, ("--threads",))
     else:
-        options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+        options = {"threads": args.threads} if args.threads else {}
         processes = cli.resolve_processes(args.processes, config.engine)
         if processes is not None:
             options["processes"] = processes

@@ -112,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--trials", type=cli.TRIALS, default=200, help="per shape, default 200")
     a.add_argument("--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial")
     a.add_argument("--seed", type=cli.SEED, default=0)
-    a.add_argument("--workers", type=cli.WORKERS, help="engine lanes (default: every core)")
+    a.add_argument("--threads", type=cli.THREADS, help="engine lanes (default: every core)")
     cli.add_skill_option(a, tuple(SKILLS), None, "the policy's, paper for the baseline")
     _force(a, "trials.csv, summary.md and summary.json")
 
@@ -242,7 +242,7 @@ def _act(args) -> str:
     outdir.prepare_dir(args.out)
     mujoco_log.send_to(args.out)
     _warn_gl()
-    options = {"workers": args.workers} if args.workers else {}
+    options = {"threads": args.threads} if args.threads else {}
     s = run_act(
         loc,
         args.policy,

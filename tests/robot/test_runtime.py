@@ -49,10 +49,10 @@ def test_simulated_arm_runs_the_engines_trial():
         engine_tcp.append(batch.tcp_pos[0].copy())
         engine_wrench.append(wrench[0].copy())
 
-    result = cpu_engine.run_trials(
-        specs.take([0]), as_controller_params(vec, 1), SHORT, workers=1, observer=observe
+    result = cpu_engine.run_on_cpu(
+        specs.take([0]), as_controller_params(vec, 1), SHORT, threads=1, observer=observe
     )
-    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), SHORT, workers=1)
+    results = cpu_engine.run_on_cpu(specs, as_controller_params(vec, len(specs)), SHORT, threads=1)
     assert results.success.any() and not results.success.all()  # both outcomes are compared
     for i in range(len(specs)):
         arm = SimArm(specs, i)
@@ -80,8 +80,8 @@ def test_simulated_arm_runs_the_engines_alignment():
     task = TaskConfig(shapes=("circle",), linear_error=0.001, angular_error=np.deg2rad(12.0))
     specs, vec = sample_trials(task, 3, 8).take([0, 1, 4]), baseline_params()
     config = TrialConfig(time_limit_s=6.0, search=skill_config("align"))
-    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), config,
-                                    workers=1)  # fmt: skip
+    results = cpu_engine.run_on_cpu(specs, as_controller_params(vec, len(specs)), config,
+                                    threads=1)  # fmt: skip
     assert results.success.all()  # each went deep enough for the tilt to adapt
     for i in range(len(specs)):
         arm = SimArm(specs, i)
@@ -103,8 +103,8 @@ def test_simulated_arm_runs_the_engines_spiral():
     specs = sample_trials(task, 1, 500).take([155, 489])
     vectors = load_policy("paper").controller_vectors(specs)
     runs = {
-        name: cpu_engine.run_trials(
-            specs, as_controller_params(vectors, len(specs)), workers=1,
+        name: cpu_engine.run_on_cpu(
+            specs, as_controller_params(vectors, len(specs)), threads=1,
             config=TrialConfig(time_limit_s=8.0, search=skill_config(name)),
         )
         for name in ("align", "spiral")
@@ -128,7 +128,7 @@ def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params().copy()
     vec[0] = 1e-6  # k_t
     config = TrialConfig(time_limit_s=10.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.settled[0], result.summary()
     arm = SimArm(specs, 0)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
@@ -260,7 +260,7 @@ def test_protective_stop_on_the_sensed_tool_force():
     the engine flags the same trial `protective_stop` after the same number of commands."""
     specs, vec = _specs(n=1, linear_mm=3.0, angular_deg=4.0), baseline_params()
     config = SHORT.replace(max_tool_force=15.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, workers=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.protective_stop[0] and not result.success[0]
     arm = SimArm(specs, 0, config=config)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
