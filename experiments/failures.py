@@ -19,7 +19,7 @@ from ablations import add_skill_option, chosen  # experiments/ablations.py
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
-from mjx_peg.evaluation.grid import load_controller
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
 

@@ -4,7 +4,7 @@ range, with another policy, skill or search constants: a quick paired check of a
     python experiments/grid_subset.py [--eval docs/eval/paper_spiral_50mm_small_board]
         [--per-shape 5] [--policy paper] [--skill spiral] [--search 'NAME=V;...'] [--npz F]
 
-The trials are the evaluation's own (`grid.range_specs` of its config.json): the first
+The trials are the evaluation's own (`config.range_specs` of its config.json): the first
 `--per-shape` circles and squares (or whatever shapes it has) of each range, on the C engine with
 that evaluation's time limit; ranges keep their quarter. Prints per quarter the success over the
 trials and the mean over ranges of the mean time of the successes (as `eval.py` does), then
@@ -22,7 +22,9 @@ from ablations import ABLATIONS  # experiments/ablations.py
 from contact import search_config  # experiments/contact.py
 
 from mjx_peg.engines import run_trials
-from mjx_peg.evaluation.grid import load_controller, range_specs, read_eval_dir
+from mjx_peg.evaluation.config import range_specs
+from mjx_peg.evaluation.eval_dir import read_eval_dir
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.evaluation.stats import QUARTERS, quarter_labels
 from mjx_peg.world.task import TrialSpec
 

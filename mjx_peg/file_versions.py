@@ -8,8 +8,11 @@ finds here what it meant:
   ran another physics (contact_model 1) and recorded no contact metrics; all of them, and every
   one from before the board error model, put the grasp errors on the peg in the flange;
 - per-range results from before early ending have no `settled` (no trial had settled);
-- training runs (config.json) from before the centred action map used the sigmoid map, and from
-  before the board error model the flange one; exported manifests without a "map" likewise;
+- training runs (config.json) from before the centred action map used the sigmoid map, from
+  before the board error model the flange one, from before the skills the paper's skill; exported
+  manifests without a "map" likewise; a config that leaves out the error ranges or the budget
+  meant TrainConfig's defaults before they became the `quick` preset's (+-4 mm / +-6 deg, 12,288
+  trials);
 - trial specs from before the board error model have a flat board at its nominal height;
 - evaluations, training runs and manifests that name a skill without its constants ran that
   skill's: one that no CLI offers now (`search`, `align`) with its constants as they were
@@ -37,6 +40,9 @@ TRAIN_CONFIG = {
     "grasp_model": "flange",
     "skill": "paper",
     "skill_constants": None,
+    "linear_mm": 4.0,
+    "angular_deg": 6.0,
+    "trials": 12288,
 }
 MANIFEST_ACTION_MAP = "sigmoid"
 

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from mjx_peg import cli as shared
-from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli
-from mjx_peg.evaluation import grid as evaluation
+from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli, eval_dir, runner
+from mjx_peg.evaluation import config as eval_config
 from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
@@ -180,7 +180,7 @@ def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch)
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "1",
     "--trials", "1", "--time-limit", "0.05", "--shape", "square", "--engine", "mujoco",
-    "--workers", "1", "--no-progress",
+    "--threads", "1", "--no-progress",
 ]  # fmt: skip
 
 
@@ -220,7 +220,7 @@ def test_eval_corrupt_range_file_is_one_line_naming_it(tmp_path, capsys, monkeyp
     broken.write_bytes(broken.read_bytes()[:50])
     (out / "grid.csv").unlink()
     calls = []
-    monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(runner, "run_trials", lambda *a, **k: calls.append(1))
     capsys.readouterr()
     assert eval_cli.main([*EVAL, "--out", str(out)]) == 2
     _one_line(capsys, "eval.py", str(broken), "corrupt or truncated", "delete it")
@@ -317,13 +317,13 @@ def test_every_cli_refuses_bad_values_alike(prog, argv, message, tmp_path, capsy
 @pytest.mark.parametrize(
     "prog, argv",
     [
-        ("eval.py", ["--workers", "100000"]),
+        ("eval.py", ["--threads", "100000"]),
         ("eval.py", ["--chunk-trials", "0"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:50:1e-9", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:1e308:1e-308", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "paper", "--trials", "100000"]),
         ("train.py", ["--num-envs", "100000000"]),
-        ("train.py", ["--workers", "100000"]),
+        ("train.py", ["--threads", "100000"]),
         ("train.py", ["--processes", "100000"]),
         ("eval.py", ["--processes", "-1"]),
         ("train.py", ["--processes", "2", "--engine", "mjx"]),
@@ -472,9 +472,9 @@ def test_evaluation_config_json_is_recognised_by_its_schema(tmp_path):
     out = tmp_path / "e"
     out.mkdir()
     (out / "config.json").write_text(json.dumps({"config": {}}))
-    config = evaluation.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
+    config = eval_config.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
     with pytest.raises(ValueError, match="is not an evaluation config"):
-        evaluation.prepare_out_dir(out, config, force=True)
+        eval_dir.prepare_out_dir(out, config, force=True)
     assert (out / "config.json").exists()
 
 
@@ -502,8 +502,8 @@ def test_a_second_evaluation_of_the_same_out_is_refused_while_the_first_holds_it
     """The lock is held while its process lives, and gone with it when it is killed."""
     out = tmp_path / "eval"
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from mjx_peg import cli\n"
-         "with cli.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
+        [sys.executable, "-c", "import sys, time; from mjx_peg import outdir\n"
+         "with outdir.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
          str(out)],
         stdout=subprocess.PIPE, text=True,
     )  # fmt: skip

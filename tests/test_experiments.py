@@ -66,17 +66,19 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
 
 
 def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):
-    from mjx_peg.evaluation import grid
+    from mjx_peg.evaluation.config import EvalConfig
+    from mjx_peg.evaluation.eval_dir import prepare_out_dir
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
 
     dirs = {}
     for full in (False, True):
-        config = grid.EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
-                                 angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
-                                 size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
+        config = EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
+                            angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
+                            size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
         out = dirs[full] = tmp_path / ("full" if full else "early")
-        grid.prepare_out_dir(out, config, None)
-        _, controller = grid.load_controller("baseline")
-        assert grid.run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
+        prepare_out_dir(out, config, None)
+        _, controller = load_controller("baseline")
+        assert run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
     report = tmp_path / "BENCHMARKS.md"
     report.write_text("# Benchmarks\n\n## Early ending\n\nold\n\n## Next\n\nkept\n")
     out = run_script("experiments/early_ending.py", dirs[False], dirs[True], "--write", report)
@@ -126,9 +128,9 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
         seconds[stage] = seconds.get(stage, 0.0) + s
         calls[stage] = calls.get(stage, 0) + 1
 
-    plain = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2)
+    plain = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2)
     watch = lambda lane, rows, wrench: None  # noqa: E731  (the observer stage too)
-    timed = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2,
+    timed = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2,
                               profile=profile, observer=watch)  # fmt: skip
     for name, value in plain.to_arrays().items():
         assert value.tobytes() == timed.to_arrays()[name].tobytes(), name
@@ -136,7 +138,7 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
     assert (timed.steps == 100).all()  # 0.2 s each: on 2 slots, 3 rounds of 100 periods
     assert calls["step"] == calls["advance"] == calls["observer"] == 300
     with pytest.raises(ValueError, match="profile"):
-        engine.run_trials(specs, params, config, processes=1, profile=profile)
+        engine.run_on_cpu(specs, params, config, processes=1, profile=profile)
 
 
 # experiments/engines_agree.py runs in tests/engines/test_engines.py::test_engines_agree (one

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json
@@ -195,11 +195,11 @@ def main(argv=None) -> int:
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
     # The output location, before any trial: never the policy, no earlier result replaced
     # without --force (moved aside then), writable; then one row per trial as it ends.
-    cli.check_apart(args.out, {"--policy": args.policy})
+    outdir.check_apart(args.out, {"--policy": args.policy})
     results = args.out / RESULTS
     if _has_rows(results) or results.is_symlink():
-        cli.refuse_or_move([results], args.force, PROG)
-    cli.prepare_dir(args.out)
+        outdir.refuse_or_move([results], args.force, lambda text: cli.note(PROG, text))
+    outdir.prepare_dir(args.out)
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(args.out)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json
@@ -183,7 +183,7 @@ def write_log(path: Path, arm: UR5eArm, run: SkillRun, runtime: SkillRuntime) ->
             w.writerow(header)
             w.writerows([f"{v:.6g}" for v in row] for row in table)
 
-    cli.write_atomic(path, write)
+    outdir.write_atomic(path, write)
     return n
 
 
@@ -219,7 +219,7 @@ def plot_log(path: Path, arm: UR5eArm, run: SkillRun, hole: HoleEstimate) -> Non
         f" at {run.time_s:.2f} s"
     )
     fig.tight_layout()
-    cli.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+    outdir.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
     plt.close(fig)
 
 
@@ -262,11 +262,11 @@ def run(args, prog: str) -> int:
         print_plan(p, hole)
         print(f"{prog}: dry run: nothing was connected or moved")
         return 0
-    cli.check_apart(args.out, {"--policy": args.policy})
+    outdir.check_apart(args.out, {"--policy": args.policy})
     paths = [args.out / RUN_CSV, args.out / RUN_PNG, args.out / RUN_SKILL]
     if any(q.exists() or q.is_symlink() for q in paths):
-        cli.refuse_or_move(paths, args.force, prog)
-    cli.prepare_dir(args.out)
+        outdir.refuse_or_move(paths, args.force, lambda text: cli.note(prog, text))
+    outdir.prepare_dir(args.out)
     write_json(paths[2], skill.record())
     if args.rehearse:
         robot = rehearsal_robot(hole, p["q_start"], args.seed)

@@ -32,8 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.evaluation.stats import mcnemar_p
 from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import Renderer, make_label
@@ -142,16 +143,6 @@ def controller_vectors(policy: str, specs: TrialSpec, shapes: list[str], sizes: 
         specs.hole_est_yaw,
     )
     return load_policy(policy).vectors_for(obs)
-
-
-def mcnemar_p(a: np.ndarray, b: np.ndarray) -> float:
-    """Two-sided exact McNemar p-value of paired successes a, b (bool arrays)."""
-    from scipy.stats import binomtest
-
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    if only_a + only_b == 0:
-        return 1.0
-    return float(binomtest(only_a, only_a + only_b, 0.5).pvalue)
 
 
 def run_act(
@@ -298,9 +289,9 @@ def run_act(
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-    cli.write_atomic(out / "trials.csv", table.getvalue())
-    cli.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    cli.write_atomic(out / "summary.md", summary_markdown(summary))
+    outdir.write_atomic(out / "trials.csv", table.getvalue())
+    outdir.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    outdir.write_atomic(out / "summary.md", summary_markdown(summary))
     return summary
 
 

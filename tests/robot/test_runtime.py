@@ -47,7 +47,7 @@ def test_simulated_arm_runs_the_engines_trial(skill):
     engine's batch: the same outcome, time and commands, the tip within 1e-9 m."""
     specs, vec = _specs(), baseline_params()
     config = SHORT.replace(search=skill_config(skill))
-    batch = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), config, workers=1)
+    batch = cpu_engine.run_on_cpu(specs, as_controller_params(vec, len(specs)), config, threads=1)
     assert batch.success.any() and not batch.success.all()  # both outcomes are compared
     for i in range(len(specs)):
         engine_tcp, engine_wrench = [], []
@@ -56,8 +56,8 @@ def test_simulated_arm_runs_the_engines_trial(skill):
             tcp.append(lane.tcp_pos[0].copy())
             wrenches.append(wrench[0].copy())
 
-        alone = cpu_engine.run_trials(specs.take([i]), as_controller_params(vec, 1), config,
-                                      workers=1, observer=observe)  # fmt: skip
+        alone = cpu_engine.run_on_cpu(specs.take([i]), as_controller_params(vec, 1), config,
+                                      threads=1, observer=observe)  # fmt: skip
         arm = SimArm(specs, i)
         runtime = SkillRuntime(vec, HoleEstimate.of_trial(specs, i), config)
         run = run_skill(arm, runtime, done=arm.inserted)
@@ -82,7 +82,7 @@ def test_simulated_arm_runs_the_engines_spiral():
     vectors = load_policy("paper").controller_vectors(specs)
     spiral = skill_config("spiral")
     runs = {
-        name: cpu_engine.run_trials(specs, as_controller_params(vectors, 1), workers=1,
+        name: cpu_engine.run_on_cpu(specs, as_controller_params(vectors, 1), threads=1,
                                     config=TrialConfig(time_limit_s=8.0, search=search))
         for name, search in (("still", spiral.replace(spiral_speed=0.0)), ("spiral", spiral))
     }  # fmt: skip
@@ -104,7 +104,7 @@ def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params().copy()
     vec[0] = 1e-6  # k_t
     config = TrialConfig(time_limit_s=10.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.settled[0], result.summary()
     arm = SimArm(specs, 0)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
@@ -236,7 +236,7 @@ def test_protective_stop_on_the_sensed_tool_force():
     the engine flags the same trial `protective_stop` after the same number of commands."""
     specs, vec = _specs(n=1, linear_mm=3.0, angular_deg=4.0), baseline_params()
     config = SHORT.replace(max_tool_force=15.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, workers=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.protective_stop[0] and not result.success[0]
     arm = SimArm(specs, 0, config=config)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
