@@ -9,8 +9,9 @@ finds here what it meant:
   one from before the board error model, put the grasp errors on the peg in the flange;
 - per-range results from before early ending have no `settled` (no trial had settled);
 - training runs (config.json) from before the centred action map used the sigmoid map, from
-  before the board error model the flange one, from before the skills the paper's skill; exported
-  manifests without a "map" likewise; a config that leaves out the error ranges or the budget
+  before the board error model the flange one, from before the skills the paper's skill, from
+  before the geometry observation the `names` one; exported manifests without a "map" or an
+  observation "layout" likewise; a config that leaves out the error ranges or the budget
   meant TrainConfig's defaults before they became the `quick` preset's (+-4 mm / +-6 deg, 12,288
   trials);
 - trial specs from before the board error model have a flat board at its nominal height, those
@@ -44,8 +45,10 @@ TRAIN_CONFIG = {
     "linear_mm": 4.0,
     "angular_deg": 6.0,
     "trials": 12288,
+    "observation": "names",
 }
 MANIFEST_ACTION_MAP = "sigmoid"
+MANIFEST_OBSERVATION = "names"  # the observation layout of manifests that name none
 # The hole's clearance (hole size / peg size) of trial specs that predate it: the paper's fits of
 # the shapes there were then (shape ids 0-2: circle 1.03 D, square and triangle 1.08 L).
 SPEC_HOLE_SCALE = (1.03, 1.08, 1.08)

@@ -55,13 +55,13 @@ def tiny_run(tmp_path_factory):
 def test_env_reset_and_step_are_one_trial():
     config = TrainConfig(time_limit_s=1.0)
     centre = config.map_centre()
+    assert config.observation == "geometry"  # new runs read parts by their geometry
     env = VmapWrapper(InsertionEnv(config.task(), config.trial(), action_centre=centre))
     state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
     specs = specs_from_seeds(config.task(), np.asarray(state.info["seed"]))
-    np.testing.assert_allclose(state.obs["state"], observation.observe_specs(specs), atol=1e-6)
-    critic = np.concatenate(
-        [observation.observe_specs(specs), observation.privileged_specs(specs)], axis=1
-    )
+    policy_obs = observation.observe_specs(specs, "geometry")
+    np.testing.assert_allclose(state.obs["state"], policy_obs, atol=1e-6)
+    critic = np.concatenate([policy_obs, observation.privileged_specs(specs)], axis=1)
     np.testing.assert_allclose(state.obs["privileged_state"], critic, atol=1e-6)
     action = jnp.zeros((4, 38))
     after = jax.jit(env.step)(state, action)
@@ -127,7 +127,8 @@ def test_full_time_limit_flag():
 def test_numpy_policy_equals_jax_deterministic_action(tiny_run):
     out, _ = tiny_run
     config, state = load_state(out)
-    obs = np.random.default_rng(0).normal(size=(1000, observation.OBS_SIZE)).astype(np.float32)
+    width = len(observation.LAYOUTS[config.observation])
+    obs = np.random.default_rng(0).normal(size=(1000, width)).astype(np.float32)
     jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
     np_action = load_policy(out).act(obs)
     assert np.max(np.abs(np_action - jax_action)) < 1e-5
@@ -138,9 +139,9 @@ def test_prior_starts_at_the_baseline():
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.skill.baseline import baseline_params
 
-    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
+    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 9)), jnp.float32)
     base = baseline_params()
-    for cfg in (config, config.replace(action_map="sigmoid")):
+    for cfg in (config, config.replace(action_map="sigmoid")):  # the geometry layout's 9
         state = init_state(cfg, make_networks(cfg))
         vec = controller_vector(deterministic_actions(cfg, state, obs), cfg.map_centre())
         vec = np.asarray(vec)
