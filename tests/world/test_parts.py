@@ -176,3 +176,24 @@ def test_the_paper_fits_are_the_default_and_others_are_checked():
         parts.hole_walls("octagon", 0.05)
     assert mjcf.build_mjcf("square", 0.05) == mjcf.build_mjcf("square", 0.05, 1.08)
     assert 'model="mjx_peg_square_50mm_hole1.02"' in mjcf.build_mjcf("square", 0.05, 1.02)
+
+
+@pytest.mark.parametrize("shape", ["hexagon", "rectangle"])
+def test_the_baseline_inserts_a_new_part_from_zero_error(shape):
+    """The hand-tuned numbers with the spiral skill on the C engine: a 50 mm hexagon or
+    rectangle peg at its paper and tight fits, no error, is in within 4 s of simulated time."""
+    from mjx_peg.engines import run_trials
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.skill.baseline import baseline_params
+    from mjx_peg.skill.search import skill_config
+    from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
+
+    specs = TrialSpec.concat([
+        sample_trials(TaskConfig(shapes=(shape,), linear_error=0.0, angular_error=0.0,
+                                 hole_scale=fit), 7, 2)
+        for fit in ("paper", "tight")
+    ])  # fmt: skip
+    np.testing.assert_array_equal(specs.hole_scale, [1.08, 1.08, 1.02, 1.02])
+    config = TrialConfig(time_limit_s=4.0, search=skill_config("spiral"))
+    result = run_trials(specs, baseline_params(), "mujoco", config, threads=1)
+    assert result.success.all(), result.time_s
