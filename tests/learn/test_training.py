@@ -180,6 +180,22 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     )
 
 
+def test_init_from_takes_its_runs_observation_layout():
+    """--init-from a run trained on the names layout (policies/paper) reads that layout; asking
+    for another is one line; a new run reads the geometry layout unless told."""
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn import cli
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv)))
+
+    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "names"
+    assert resolve().observation == "geometry"
+    assert resolve("--observation", "names").observation == "names"
+    with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
+        resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")
+
+
 @pytest.mark.slow
 def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path):
     reference, _ = tiny_run
