@@ -36,6 +36,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EVAL = "docs/eval"
+RESULTS = "docs/results"  # the other shipped results: contact sets, zero error, the arm
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,7 +93,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
 
     def contact(name, expect_s, *args):
-        argv = (py, "experiments/contact.py", *args, "--csv", f"{out}/{name}.csv")
+        argv = (py, "experiments/contact.py", *args, "--csv", f"{RESULTS}/contact/{name}.csv")
         return Step(name, argv, expect_s)
 
     base = ("--skill", "spiral")
@@ -121,7 +122,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
     zero = Step("zero", (py, "experiments/failures.py", *paper, "--linear-mm", "0",
                          "--angular-deg", "0", "--shape", "circle,square,triangle",
-                         "--trials", "60", "--seed", "7"), 6)
+                         "--trials", "60", "--seed", "7", "--out", f"{RESULTS}/zero_error.npz"), 6)
     arm = []
     for shape in ("circle", "square"):
         for variant, extra in (("500", ()), ("lag", ("--actuator-lag-ms", "5")),
@@ -129,10 +130,10 @@ def steps(out: str, commit: str) -> list[Step]:
             name = f"arm_{shape}_{variant}"
             argv = (py, "-m", "mjx_peg.robot", *paper, "--shape", shape, "--linear-mm", "4",
                     "--angular-deg", "6", "--trials", "25", "--seed", "0", *extra, "--out",
-                    f"{out}/{name}")
-            arm.append(Step(name, argv, 35, f"{out}/{name}"))
+                    f"{RESULTS}/arm/{name}")
+            arm.append(Step(name, argv, 35, f"{RESULTS}/arm/{name}"))
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
-                             f"{out}/vision_act"), 310, f"{out}/vision_act")
+                             "docs/vision/act"), 310, "docs/vision/act")
     nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
     return [*train, *grids, *sets, zero, *arm, vision, nominal]
     # fmt: on
@@ -161,6 +162,7 @@ def run(chosen: list[Step], out: Path) -> int:
     for s in chosen:
         if s not in todo:
             print(f"{s.name}: done before, skipped")
+    (ROOT / RESULTS / "contact").mkdir(parents=True, exist_ok=True)
     spent = expected = 0.0
     for k, step in enumerate(todo, 1):
         rest = sum(s.expect_s for s in todo[k - 1 :]) * (spent / expected if expected else 1.0)
