@@ -1,11 +1,12 @@
 """Regenerate every published number of the shipped skill, one job at a time, niced.
 
-When the trial or the `--skill spiral` changes, every number the README and the guides cite
-from it is rerun: `quick` and `transfer` retrained and re-shipped (`experiments/ship_policy.py`,
-at HEAD), the `--skill spiral` grids under docs/eval/ (`paper-small` at 50 mm, the triangle
-before and after transfer, 25 and 60 mm, the flange model, the baseline), the 500- and 1,500-trial
-contact sets, the paper's skill on the 500, zero error, the sensor and friction variants, the
-simulated arm, vision to action, and the nominal 350-range grid last. `policies/paper` is not
+When the trial or the `--skill spiral` changes, every number of it on the results page
+(docs/results.md) is rerun: `quick` and `transfer` retrained and re-shipped
+(`experiments/ship_policy.py`, at HEAD), the `--skill spiral` grids under docs/eval/
+(`paper-small` at 50 mm, the triangle before and after transfer, 25 and 60 mm, the flange model,
+the baseline), the 500- and 1,500-trial contact sets, the paper's skill on the 500, zero error,
+the sensor and friction variants, the simulated arm, vision to action, and the nominal 350-range
+grid last. `policies/paper` is not
 retrained (`python train.py --preset paper`, ~22 min here, is a decision of its own).
 
     python experiments/regenerate.py                       # everything, ~110 min on 2 cores
@@ -17,7 +18,9 @@ A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME
 skipped; a grid is removed before its first start only (a stale grid of the skill before would
 otherwise be resumed under the same config), then eval.py resumes it; a training resumes from
 its checkpoints. OUT belongs to one commit (OUT/commit): after a new commit, use a new OUT.
-Logs and CSVs go to OUT (default runs/regenerate), the grids to docs/eval/. The steps' durations
+Logs go to OUT (default runs/regenerate); the grids to docs/eval/, the contact sets, zero error
+and the simulated arm to docs/results/, vision to action to docs/vision/act/. Once every chosen
+step is done, experiments/results_page.py writes docs/results.md from them. The steps' durations
 are those of the last regeneration on this 2-core CPU, for the ETA.
 """
 
@@ -184,9 +187,10 @@ def run(chosen: list[Step], out: Path) -> int:
         (out / f"{step.name}.done").write_text(f"{wall:.1f}\n")
         spent, expected = spent + wall, expected + step.expect_s
         print(f"    done in {_minutes(wall)}", flush=True)
-    print(f"every step done: the grids in {EVAL}/*/summary.md, the rest in {out}/*.log and "
-          f"*.csv (pair them with experiments/contact_table.py)")  # fmt: skip
-    return 0
+    from results_page import main as write_results_page  # this folder's; it imports this module
+
+    print(f"every step done: the grids in {EVAL}/*/, the rest in {RESULTS}/, the logs in {out}/")
+    return write_results_page([])
 
 
 def main(argv=None) -> int:
