@@ -300,7 +300,7 @@ def grid_sections(all_grids: list[Grid]) -> list[str]:
 
 
 def minutes(seconds: float) -> str:
-    return f"{seconds:.0f} s ({int(seconds // 60)} min {seconds % 60:.0f} s)"
+    return f"{seconds:,.0f} s ({int(seconds // 60)} min {seconds % 60:.0f} s)"
 
 
 def training_section() -> list[str]:
@@ -308,7 +308,8 @@ def training_section() -> list[str]:
         "## Training",
         "",
         "Each shipped policy (`policies/NAME`, `--policy NAME` in every command): the command "
-        "and commit that made it, its trials, the skill it trained with, the run's wall time on "
+        "and commit that made it, its trials, the skill it trained with and the one it runs "
+        "unless told otherwise (its manifest), the run's wall time on "
         "this 2-core CPU and the training success (the mean of the first and of the last three "
         "iterations), from its `provenance.json`, `config.json` and `metrics.csv`.",
         "",
@@ -318,17 +319,18 @@ def training_section() -> list[str]:
         folder = folder.parent
         made = json.loads((folder / "provenance.json").read_text())
         config = json.loads((folder / "config.json").read_text())
+        runs = json.loads((folder / "manifest.json").read_text()).get("skill", {}).get("name")
         with open(folder / "metrics.csv") as f:
             metrics = list(csv.DictReader(f))
         rate = [float(m["success_rate"]) for m in metrics]
         errors = f"±{config['linear_mm']:g} mm / ±{config['angular_deg']:g} deg"
         rows.append([f"`{folder.name}`", " + ".join(config["shapes"]), errors,
-                     f"{int(metrics[-1]['trials']):,}", config["skill"],
+                     f"{int(metrics[-1]['trials']):,}", config["skill"], runs or config["skill"],
                      minutes(float(metrics[-1]["wall_s"])),
                      f"{pct(np.mean(rate[:3]))} -> {pct(np.mean(rate[-3:]))} %",
                      made["commit"][:7]])  # fmt: skip
         cmds.append(f"- `{folder.name}`: `{made['command']}`")
-    header = ["policy", "shapes", "errors", "trials", "trained with", "wall",
+    header = ["policy", "shapes", "errors", "trials", "trained with", "runs by default", "wall",
               "training success", "commit"]  # fmt: skip
     return lines + table(header, rows) + ["", "Commands:", "", *cmds]
 

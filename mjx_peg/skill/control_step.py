@@ -44,7 +44,7 @@ the first baseline 12-14, the re-tuned one 84). T_c = 0.75 s keeps every one of 
 nominal sensor and for the whole training randomization (latency 0-2 periods, filters of 25-100
 Hz): the largest stable L is 376-378 at d <= 1 and 202-221 at d = 2 (tests/skill/test_stability.py).
 Measurements behind T_c (success and chatter against T_c, what the damping costs at the first
-press): docs/compliance_loop.md.
+press): docs/design/compliance_loop.md.
 
 Written once over the array-API namespace of its inputs, batched over leading dimensions: the
 MJX engine jits and vmaps it, the C MuJoCo engine runs it batched in NumPy, and the robot runtime

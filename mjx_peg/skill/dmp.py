@@ -24,7 +24,7 @@ duration T (`DMPConfig.duration`), during which the phase decays from 1 to exp(-
 (`DMPConfig.phase_span`). tau stays 1 s, so the learned gains keep their meaning (K = omega^2);
 T = 2 s (not 1 s) slows the approach so that the peg meets the board gently: the minimum-jerk
 profile of the 120-160 mm descent peaks at 1.9 x travel / T, and the first impact's force grows
-with the speed (docs/compliance_loop.md, "The approach's duration"). The forcing weights w_i
+with the speed (docs/design/compliance_loop.md, "The approach's duration"). The forcing weights w_i
 are not learned: `fit_forcing_weights` fits them once, by locally weighted regression, for
 the reference stiffness `k_ref`.
 
@@ -37,7 +37,7 @@ minimum-jerk steps (its acceleration continuous and zero at both ends) covers th
 the same T at a peak speed of 2 / (1 + c) x travel / T instead of 1.875 x: at c = 0.5 the peg
 meets the board 28 % slower (0.124 against 0.173 m/s for a 140 mm descent in 1.5 s, what the
 minimum-jerk profile reaches in 2.1 s) and reaches the success depth 0.08 s later in free space.
-Measured: docs/spiral_timing.md, "The cruise". `cruise` = 0 is the paper's minimum jerk.
+Measured: docs/design/spiral_timing.md, "The cruise". `cruise` = 0 is the paper's minimum jerk.
 
 Everything except the NumPy-only fitting and `rollout` is written over the array-API namespace
 of the inputs and batched over leading dimensions; this module imports neither numpy nor jax.
