@@ -349,7 +349,8 @@ def test_interrupting_the_caller_stops_the_call(lanes):
     code = _LONG_CALL.replace("threads=2,", f"{lanes}=2,")
     for sig in (signal.SIGINT, signal.SIGKILL):
         caller = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
-                                  stderr=subprocess.PIPE, text=True)  # fmt: skip
+                                  stderr=subprocess.PIPE, text=True,
+                                  preexec_fn=_default_sigint)  # fmt: skip
         assert caller.stdout.readline().strip() == "started"
         workers = _children(caller.pid)
         assert len(workers) >= 2 if lanes == "processes" else workers == []
@@ -363,6 +364,14 @@ def test_interrupting_the_caller_stops_the_call(lanes):
         while any(map(_running, workers)) and time.monotonic() < deadline:
             time.sleep(0.05)
         assert not [w for w in workers if _running(w)]
+
+
+def _default_sigint() -> None:
+    """In the child before it starts: Ctrl-C raises KeyboardInterrupt there, even when the
+    suite runs as a background job whose shell ignores SIGINT (which children inherit)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _children(pid: int) -> list[int]:

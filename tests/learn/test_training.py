@@ -132,14 +132,14 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     observation statistics, counted as its trials; the exploration std and the critic fresh."""
     from mjx_peg.learn import cli
     from mjx_peg.learn.ppo import init_state, make_networks
-    from mjx_peg.learn.trainer import _load_init
+    from mjx_peg.learn.trainer import load_init
 
     config = cli.resolve_config(
         cli.parser().parse_args(["--preset", "transfer", "--init-from", "paper"])
     )
     assert Path(config.init_from).resolve() == ROOT / "policies" / "paper"
     template = init_state(config, make_networks(config))
-    state = _load_init(config, template)
+    state = load_init(config, template)
     shipped = load_policy("paper")
     obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
     action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
