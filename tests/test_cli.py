@@ -69,7 +69,7 @@ def _unwritable_dir(tmp_path: Path) -> Path:
         return path
 
 
-# -- data loss (each of these failed before issue 15) -----------------------------------------
+# -- data loss: an output never replaces another's, a rerun never loses a result -------------
 
 
 def test_train_force_never_replaces_a_directory_that_is_not_a_run(tmp_path, capsys):

@@ -41,8 +41,8 @@ def test_engines_agree(tmp_path, capsys):
     last trial ends, at about 8 batch steps/s whatever the batch's size: one batch of trials
     that all end early is the cheapest check. Under the board model these 8 insert on the C
     engine at 1.38-1.42 s (the 2 s limit is headroom).
-    At larger errors contact-heavy trials part between the engines; the 100-spec comparison is
-    in the closing note of the engines issue. The F/T pipeline itself is the same function on
+    At larger errors contact-heavy trials part between the engines (`experiments/engines_agree.py`
+    with more trials measures by how much). The F/T pipeline itself is the same function on
     both (tests/engines/test_period.py, tests/skill/test_sensor.py); here both engines must
     report a peak sensed force of the same size.
     """

@@ -84,9 +84,9 @@ def test_protective_stop_and_contact_metrics():
 
 
 def test_chatter_metric_sees_the_old_oscillation_and_not_the_damped_loop():
-    """The coupling without sensor, damping or gentle approach (the engines before issue 18)
-    alternates the axial force by ~100 N per step on a peg stuck on the rim; the default trial
-    does not."""
+    """The coupling without sensor, damping or gentle approach (the trial before the F/T pipeline
+    and the compliance damping) alternates the axial force by ~100 N per step on a peg stuck on
+    the rim; the default trial does not."""
     from mjx_peg.skill import dmp, sensor
 
     specs = _specs("square", 6, seed=1, linear_error=0.003, angular_error=np.deg2rad(4.0))
