@@ -1,6 +1,6 @@
 """The world: the UR5e, the board and the peg, and the trials drawn in it (CONVENTIONS.md).
 
-constants.py    sizes, shapes, limits shared by every layer
+constants.py    every fixed number and name of the physical setup
 rotations.py    rotation matrices, quaternions, rotation vectors
 kinematics.py   the UR5e's closed-form forward and inverse kinematics
 mjcf.py         the scene's MJCF for one (shape, size)
