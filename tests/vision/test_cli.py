@@ -118,3 +118,39 @@ def test_inference_needs_neither_jax_nor_mujoco():
         "assert not bad, bad"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _files(path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()
+    }
+
+
+def test_vision_render_resumes_refuses_and_moves_aside_with_force(tmp_path, capsys):
+    out = tmp_path / "split"
+    argv = ["render", "--out", str(out), "--count", "1", "--width", "64", "--height", "64",
+            "--shapes", "square", "--sizes", "50", "--no-progress"]  # fmt: skip
+    assert cli.main(argv) == 0
+    before = _files(out)
+    assert sorted(before) == ["000000.json", "000000.png", "manifest.json"]
+    capsys.readouterr()
+    assert cli.main([*argv, "--seed", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("mjx-peg-vision: error: ")
+    assert "holds a vision split with a different config (seed: 0 there, 1 now)" in err
+    assert "--force" in err and _files(out) == before
+    assert cli.main([*argv, "--seed", "1", "--force"]) == 0
+    assert "--force: moved the earlier vision split in" in capsys.readouterr().err
+    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("split.replaced-")]
+    assert _files(moved) == before
+    assert json.loads((out / "manifest.json").read_text())["config"]["seed"] == 1
+    # Growing the split resumes it: only the new image is rendered.
+    assert cli.main([*argv[:4], "2", *argv[5:], "--seed", "1"]) == 0
+    assert "rendered 1 images (2 in the split)" in capsys.readouterr().out
+    # Nothing but a split is moved aside.
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("x\n")
+    assert cli.main([*argv[:2], str(mine), *argv[3:], "--force"]) == 2
+    assert "--force replaces only a vision split" in capsys.readouterr().err
+    assert _files(mine) == {"notes.txt": b"x\n"}
