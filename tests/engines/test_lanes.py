@@ -18,17 +18,6 @@ def _specs(shape, n, seed, **errors):
     return sample_trials(config, seed, n)
 
 
-def _mixed_specs(n, seed):
-    """Every shape at two sizes, errors large enough that some trials fail."""
-    config = TaskConfig(
-        shapes=("circle", "square", "triangle"),
-        sizes=(0.05, 0.06),
-        linear_error=0.004,
-        angular_error=np.deg2rad(6.0),
-    )
-    return sample_trials(config, seed, n)
-
-
 def test_results_do_not_depend_on_threads_or_slots():
     specs = _specs("circle", 6, seed=3, linear_error=0.002, angular_error=np.deg2rad(3.0))
     config = TrialConfig(time_limit_s=3.0)
@@ -38,12 +27,12 @@ def test_results_do_not_depend_on_threads_or_slots():
     np.testing.assert_allclose(a.final_tip_pos, b.final_tip_pos, atol=1e-9)
 
 
-def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
+def test_results_do_not_depend_on_lanes_slots_or_batch_threads(mixed_specs):
     """One lane or two, few slots or many, 1 or 2 C threads per batch: bit-identical results,
     progress for every trial (slots recycled across scenes), the batches reused across calls."""
     from mjx_peg.engines import sims
 
-    specs = _mixed_specs(12, seed=6)
+    specs = mixed_specs(12, seed=6)
     params = np.tile(baseline_params(), (12, 1))
     params[5, :2] = 1e9  # one trial blows up
     config = TrialConfig(time_limit_s=3.0)  # the approach takes 2 s
@@ -67,11 +56,11 @@ def test_results_do_not_depend_on_lanes_slots_or_batch_threads():
             np.testing.assert_array_equal(getattr(other, name), value, err_msg=name)
 
 
-def test_an_error_in_a_lane_is_one_clear_error(monkeypatch):
+def test_an_error_in_a_lane_is_one_clear_error(monkeypatch, mixed_specs):
     """A lane that fails stops the call with its exception in the caller; the next call runs."""
     from mjx_peg.engines import period
 
-    specs = _mixed_specs(8, seed=7)
+    specs = mixed_specs(8, seed=7)
     config = TrialConfig(time_limit_s=0.5)
     calls, original = [0], period.skill_torque
 

@@ -4,22 +4,9 @@ only the model fields each simulation owns."""
 import numpy as np
 import pytest
 
-from mjx_peg.world.task import TaskConfig, sample_trials
-
-
-def _mixed_specs(n, seed):
-    """Every shape at two sizes, errors large enough that some trials fail."""
-    config = TaskConfig(
-        shapes=("circle", "square", "triangle"),
-        sizes=(0.05, 0.06),
-        linear_error=0.004,
-        angular_error=np.deg2rad(6.0),
-    )
-    return sample_trials(config, seed, n)
-
 
 @pytest.mark.parametrize("persistent", [True, False])
-def test_batch_step_is_mj_step2_then_mj_step1(persistent):
+def test_batch_step_is_mj_step2_then_mj_step1(persistent, mixed_specs):
     """The engine's physics: Batch.step(stage=mjSTAGE_VEL) from forward(ACC), forward(VEL) is
     C MuJoCo's start_trial, mj_step1, then (ctrl, mj_step2, mj_step1) per step, to the bit."""
     import mujoco
@@ -27,7 +14,7 @@ def test_batch_step_is_mj_step2_then_mj_step1(persistent):
     from mjx_peg.engines.sims import Sims
     from mjx_peg.world import scene
 
-    specs, n = _mixed_specs(40, seed=9), 4
+    specs, n = mixed_specs(40, seed=9), 4
     specs = specs.take(np.flatnonzero(specs.shape_id == 1)[:n])  # squares
     sims = Sims(("square", float(specs.size[0])), n, nthread=2, persistent=persistent)
     models = [scene.load_model("square", float(specs.size[0])) for _ in range(n)]
@@ -53,7 +40,7 @@ def test_batch_step_is_mj_step2_then_mj_step1(persistent):
             assert sims.time[i] == d.time
 
 
-def test_start_trial_edits_only_the_fields_the_engine_expands():
+def test_start_trial_edits_only_the_fields_the_engine_expands(mixed_specs):
     """The batch gives each simulation its own TRIAL_MODEL_FIELDS; scene.start_trial must edit
     no other model field."""
     import mujoco
@@ -61,7 +48,7 @@ def test_start_trial_edits_only_the_fields_the_engine_expands():
     from mjx_peg.engines import sims
     from mjx_peg.world import scene
 
-    specs = _mixed_specs(6, seed=10)
+    specs = mixed_specs(6, seed=10)
     for i in range(len(specs)):
         key = sims.scene_key(specs, i)
         before, m = scene.load_model(*key), scene.load_model(*key)
