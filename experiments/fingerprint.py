@@ -7,8 +7,9 @@ commits and compare, to show a change left the trial's behaviour as it was.
 The batch: 48 trials (circle, square, triangle 50 mm, ±4 mm / ±6 deg, randomized sensor draws)
 with the baseline's 38 numbers each scaled by U(0.8, 1.2), under seven trial configs (nominal,
 protective stops at 60 N, loose settle tolerances, a 0.3 rad/s speed limit, every failure to the
-limit, a 125 Hz / 25 Hz / 3-period sensor), and 24 zero-error trials, all with one skill
-(`--skill`, the paper's by default); `--compare` lists the arrays that differ (exit 1 if any).
+limit, a 125 Hz / 25 Hz / 3-period sensor, the spiral skill), and 24 zero-error trials, all
+but the spiral's with one skill (`--skill`, the paper's by default); `--compare` lists the arrays
+that differ (exit 1 if any).
 """
 
 from __future__ import annotations
@@ -41,9 +42,11 @@ def variants(scale: float, skill: str = "paper") -> dict[str, TrialConfig]:
         "no_settle": TrialConfig(time_limit_s=long, end_settled=False),
         "slow_sensor": TrialConfig(time_limit_s=8.0 * scale, sensor=sensor.SensorConfig(
             rate_hz=125.0, cutoff_hz=25.0, delay_steps=3)),
+        "spiral": TrialConfig(time_limit_s=long, search=skill_config("spiral")),
     }  # fmt: skip
     search = skill_config(skill)
-    return {name: dataclasses.replace(c, search=search) for name, c in configs.items()}
+    return {name: c if name == "spiral" else dataclasses.replace(c, search=search)
+            for name, c in configs.items()}  # fmt: skip
 
 
 def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange",

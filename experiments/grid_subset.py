@@ -18,6 +18,7 @@ import argparse
 import time
 
 import numpy as np
+from ablations import ABLATIONS  # experiments/ablations.py
 from contact import search_config  # experiments/contact.py
 
 from mjx_peg.engines import run_trials
@@ -33,7 +34,12 @@ def main(argv=None) -> None:
     p.add_argument("--eval", default="docs/eval/paper_spiral_50mm_small_board")
     p.add_argument("--per-shape", type=int, default=5, help="trials of each shape per range")
     p.add_argument("--policy", default="paper", help="'baseline', a shipped policy or a run")
-    p.add_argument("--skill", default=None, help="default: the evaluation's")
+    p.add_argument(
+        "--skill",
+        default=None,
+        choices=tuple(ABLATIONS),
+        help="an ablation (experiments/ablations.py); default: the evaluation's",
+    )
     p.add_argument("--search", default="", help="SkillConfig constants changed, 'NAME=V;...'")
     p.add_argument("--time-limit", type=float, default=None, help="default: the evaluation's")
     p.add_argument("--threads", type=int, default=None)
@@ -47,7 +53,8 @@ def main(argv=None) -> None:
         raise SystemExit(f"--eval: {e}") from None
     skill = args.skill or config.skill
     trial = config.trial_config()
-    trial = trial.replace(search=search_config(skill, args.search),
+    base = config.skill_constants if args.skill is None else args.skill
+    trial = trial.replace(search=search_config(base, args.search),
                           time_limit_s=args.time_limit or trial.time_limit_s)  # fmt: skip
     parts, ranges = [], []
     for index in range(len(config.ranges)):

@@ -18,7 +18,7 @@ import functools
 import math
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from mjx_peg import errors
@@ -170,16 +170,18 @@ def add_grasp_model_option(parser: argparse.ArgumentParser, models, default: str
     )
 
 
-def add_skill_option(parser: argparse.ArgumentParser, skills, default: str | None,
-                     default_text: str = "") -> None:  # fmt: skip
-    """--skill: the skill's contact search (skill.search.SKILLS)."""
+def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
+                     default: str | None = None, default_text: str = "") -> None:  # fmt: skip
+    """--skill: one of `skills` (name -> what it is: skill.search.SKILL_DESCRIPTIONS); default
+    None: the policy's."""
+    described = "; ".join(f"{name}: {text}" for name, text in skills.items())
+    if not default_text:
+        default_text = default or "the one the policy's manifest names, paper for the baseline"
     parser.add_argument(
         "--skill",
         default=default,
-        choices=skills,
-        help="paper: the paper's compliant DMP as written; search: with the contact search, the "
-        "goal moved away from the centre of pressure of a peg resting on the board top "
-        f"(skill/search.py); default: {default_text or default}",
+        choices=tuple(skills),
+        help=f"{described}; default: {default_text}",
     )
 
 

@@ -182,6 +182,16 @@ def _plain(doc) -> dict:
     return json.loads(json.dumps(doc))
 
 
+def _differing(key: str, saved, wanted) -> tuple[str, object, object]:
+    """(dotted key, saved value, wanted value) of the first difference under `key`, descending
+    into objects (a skill's constants name the constant)."""
+    if isinstance(saved, dict) and isinstance(wanted, dict):
+        for k in [*wanted, *(k for k in saved if k not in wanted)]:
+            if saved.get(k) != wanted.get(k):
+                return _differing(f"{key}.{k}", saved.get(k), wanted.get(k))
+    return key, saved, wanted
+
+
 def _shown(value) -> str:
     text = repr(value)
     return text if len(text) <= _SHOWN else text[: _SHOWN - 3] + "..."
@@ -246,7 +256,8 @@ class OutDir:
         differ = [k for k in keys if k not in self.ignore and saved.get(k) != wanted.get(k)]
         if differ:
             k, rest = differ[0], differ[1:]
-            detail = f"{k}: {_shown(saved.get(k))} there, {_shown(wanted.get(k))} now"
+            where_k, there, now = _differing(k, saved.get(k), wanted.get(k))
+            detail = f"{where_k}: {_shown(there)} there, {_shown(now)} now"
             if rest:
                 detail += f"; {', '.join(rest)} differ{'s' if len(rest) == 1 else ''} too"
             raise UsageError(

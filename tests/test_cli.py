@@ -25,6 +25,8 @@ from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
 from mjx_peg.robot import cli as robot_cli
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+from mjx_peg.vision import cli as vision_cli
 from mjx_peg.world import scene_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -611,3 +613,17 @@ def test_parse_ranges():
             shared.parse_ranges(bad, "--linear-mm")
     with pytest.raises(ValueError, match="cannot read"):
         shared.parse_ranges("1,x", "--linear-mm")
+
+
+@pytest.mark.parametrize(
+    "main, argv",
+    [(eval_cli.main, []), (train_cli.main, []), (baseline_cli.main, []), (robot_cli.main, []),
+     (vision_cli.main, ["act"])],
+)  # fmt: skip
+def test_every_skill_option_describes_both_skills(main, argv, capsys):
+    """--skill offers the two skills a user chooses between, and its help says what each is."""
+    assert main([*argv, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--skill {paper,spiral}" in text
+    for name, description in SKILL_DESCRIPTIONS.items():
+        assert f"{name}: {description}" in text

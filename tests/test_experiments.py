@@ -30,7 +30,7 @@ def test_fingerprint_runs_and_compares_bit_for_bit(tmp_path):
     done = subprocess.run([sys.executable, script, second, *tiny, "--compare", first],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "70 of 70 arrays bit-identical" in done.stdout
+    assert "80 of 80 arrays bit-identical" in done.stdout
 
 
 def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_path):
@@ -192,6 +192,7 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     listed = run_script("experiments/regenerate.py", "--dry-run", "--out", tmp_path).splitlines()
     names = [line.split(":")[0] for line in listed[:-1]]
     assert names[:2] == ["train_quick", "ship_quick"]  # shipped before anything runs `quick`
+    assert names.index("skill_paper") < names.index("g_paper_spiral_50mm_small_board")
     assert names[-1] == "g_paper_spiral_50mm_nominal_board"  # the longest last
     assert len(names) == len(set(names)) == 43
     compared = names.index("g_transfer_spiral_triangle_small_board")
@@ -213,3 +214,35 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     argv = [sys.executable, ROOT / "experiments/regenerate.py", "--only", "zero", "--out", tmp_path]
     other = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
     assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
+
+
+def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch):
+    """`ship_policy.record_skill` on a copy of policies/paper written before skills were
+    recorded: by default it runs the skill it trained with (`search`, as it was); with
+    --skill spiral its manifest and config.json are the shipped ones, byte for byte, and its
+    policy.npz is untouched."""
+    import json
+    import shutil
+
+    from mjx_peg.policy.export import load_policy
+    from mjx_peg.policy.shipped import SHIPPED_DIR
+    from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig
+
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    import ship_policy
+
+    shipped, copy = SHIPPED_DIR / "paper", tmp_path / "paper"
+    shutil.copytree(shipped, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    del manifest["skill"], manifest["config"]["skill_constants"]
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    config = json.loads((copy / "config.json").read_text())
+    del config["skill_constants"]
+    (copy / "config.json").write_text(json.dumps(config))
+    assert load_policy(copy).skill == NamedSkill("search", SkillConfig(centre_gain=1.0))
+    assert ship_policy.record_skill(copy, None) == "search"
+    assert load_policy(copy).skill == NamedSkill("search", SkillConfig(centre_gain=1.0))
+    assert ship_policy.record_skill(copy, "spiral") == "spiral"
+    assert load_policy(copy).skill == NamedSkill("spiral", SKILLS["spiral"])
+    for name in ("manifest.json", "config.json", "policy.npz"):
+        assert (copy / name).read_bytes() == (shipped / name).read_bytes(), name

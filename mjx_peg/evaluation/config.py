@@ -19,7 +19,7 @@ import numpy as np
 
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
 
@@ -67,8 +67,12 @@ class EvalConfig:
     contact_model: int = CONTACT_MODEL
     # Where the grasp errors go (constants.GRASP_MODELS): "board", the paper's, or "flange"
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours
     skill: str = "paper"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one: a rerun with other constants is
+    # refused, not resumed.
+    skill_constants: SkillConfig | None = None
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -99,7 +103,8 @@ class EvalConfig:
             raise UsageError(
                 f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
             )
-        skill_config(self.skill)  # a known skill
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         if not isinstance(self.full_time_limit, bool):
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         self.trial_config()  # validates the time limit
@@ -112,7 +117,7 @@ class EvalConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
         )
 
     @property
@@ -127,8 +132,11 @@ class EvalConfig:
 
     def to_json(self) -> dict:
         return {
-            f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
-            for f in dataclasses.fields(self)
+            **{
+                f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
+                for f in dataclasses.fields(self)
+            },
+            "skill_constants": constants_record(self.skill_constants),
         }
 
 

@@ -26,7 +26,6 @@ from mjx_peg.errors import UsageError
 from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS, frame_strip, plot_trial, run_demo
 from mjx_peg.policy.export import policy_skill
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
@@ -119,7 +118,7 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
     label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"
-    search = skill_config(policy_skill(args.policy))  # the skill the policy was trained with
+    search = policy_skill(args.policy).config  # the skill its manifest names
     return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 
 

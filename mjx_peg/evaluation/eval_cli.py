@@ -32,9 +32,9 @@ from mjx_peg.evaluation.eval_dir import (
 from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS, paper_condition_for
 from mjx_peg.evaluation.report import write_outputs
 from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS, load_controller, run_evaluation
-from mjx_peg.policy.export import policy_skill
+from mjx_peg.policy.export import choose_skill
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES
 
@@ -120,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
         "that has settled, at rest or repeating the same motion, ends early; same outcome)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS)
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
@@ -189,6 +189,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
     for shape in shapes:
         if shape not in SHAPES:
             raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+    skill = choose_skill(args.skill, args.policy)
     return EvalConfig(
         policy=policy_label,
         grid=args.grid,
@@ -200,7 +201,8 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
         time_limit_s=args.time_limit,
         full_time_limit=args.full_time_limit,
         grasp_model=args.grasp_model,
-        skill=args.skill or policy_skill(args.policy),
+        skill=skill.name,
+        skill_constants=skill.config,
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )

@@ -48,7 +48,7 @@ def _recorded(doc: dict) -> dict:
     ValueError if it is not an evaluation's."""
     if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
         raise ValueError(f"no {SCHEMA} config")
-    return file_versions.eval_config(doc["config"])
+    return EvalConfig(**file_versions.eval_config(doc["config"])).to_json()
 
 
 def prepare_out_dir(

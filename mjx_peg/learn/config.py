@@ -23,7 +23,7 @@ from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -78,9 +78,12 @@ class TrainConfig:
     # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
     # paper's); config.json files without it were "flange" (the peg in the gripper)
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral"; config.json
-    # files without it were "paper" (file_versions)
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours;
+    # config.json files without it were "paper" (file_versions)
     skill: str = "spiral"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one.
+    skill_constants: SkillConfig | None = None
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -124,7 +127,8 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        skill_config(self.skill)  # a known skill
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -148,7 +152,7 @@ class TrainConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
         )
 
     def map_centre(self):
@@ -156,10 +160,16 @@ class TrainConfig:
         return baseline_params() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
+        """A copy with `changes`; another skill comes with its own constants unless given."""
+        if "skill" in changes and "skill_constants" not in changes:
+            changes["skill_constants"] = None
         return dataclasses.replace(self, **changes)
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        return {
+            **dataclasses.asdict(self),
+            "skill_constants": constants_record(self.skill_constants),
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> TrainConfig:

@@ -159,22 +159,23 @@ def run_act(
     skill: str | None = None,
 ) -> dict:
     """Run both conditions for every shape; write trials.csv, summary.json, summary.md. `skill`:
-    a named skill (skill.search.SKILLS); None: the one the policy was trained with."""
+    a named skill (skill.search.SKILLS); None: the policy's (`policy.export.policy_skill`).
+    summary.json records the skill's name and every constant."""
     from tqdm import tqdm
 
     from mjx_peg.engines import run_trials
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    from mjx_peg.policy.export import policy_skill
-    from mjx_peg.skill.search import skill_config
+    from mjx_peg.policy.export import choose_skill
 
-    skill = skill or policy_skill(policy)
-    config = TrialConfig(time_limit_s=time_limit_s, search=skill_config(skill))
+    chosen = choose_skill(skill, policy)
+    config = TrialConfig(time_limit_s=time_limit_s, search=chosen.config)
     rows = []
     summary = {
         "policy": policy,
-        "skill": skill,
+        "skill": chosen.name,
+        "skill_constants": chosen.record()["constants"],
         "trials_per_shape": trials,
         "size_mm": size * 1000,
         "seed": seed,

@@ -7,7 +7,7 @@
     mjx-peg-vision evaluate --model runs/vision/model --data runs/vision/data/test \
         --out runs/vision/eval/test
     mjx-peg-vision localize IMAGE.png --camera CALIB.json [--model runs/vision/model]
-    mjx-peg-vision act --policy paper --skill spiral --out runs/vision/act
+    mjx-peg-vision act --policy paper --out runs/vision/act
     mjx-peg-vision figures --model runs/vision/model --data runs/vision/data/test
 
 `evaluate`, `localize`, `act` and `figures` read the shipped localizer (`policies/localizer`)
@@ -27,7 +27,7 @@ from pathlib import Path
 from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 
 PROG = "mjx-peg-vision"
 TRAIN_OUT = Path("runs/vision/model")  # where `train` writes a new localizer
@@ -113,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial")
     a.add_argument("--seed", type=cli.SEED, default=0)
     a.add_argument("--threads", type=cli.THREADS, help="engine lanes (default: every core)")
-    cli.add_skill_option(a, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    cli.add_skill_option(a, SKILL_DESCRIPTIONS)
     _force(a, "trials.csv, summary.md and summary.json")
 
     f = sub.add_parser("figures", help="README pictures: predictions drawn, randomization gallery")

@@ -20,6 +20,7 @@ from mjx_peg.learn.ppo import deterministic_actions
 from mjx_peg.learn.trainer import load_state
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import load_policy
+from mjx_peg.skill.search import SKILLS, NamedSkill
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,7 +33,10 @@ def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
     for name in ("config.json", "metrics.csv", "trials.csv", "policy.npz", "manifest.json"):
         assert (out / name).is_file(), name
     assert (out / "training_curve.png").stat().st_size > 10_000
-    assert TrainConfig.from_json(json.loads((out / "config.json").read_text())) == tiny_config
+    config = json.loads((out / "config.json").read_text())
+    assert TrainConfig.from_json(config) == tiny_config
+    spiral = NamedSkill("spiral", SKILLS["spiral"])  # the run's skill, every constant recorded
+    assert config["skill_constants"] == spiral.record()["constants"]
     metrics = read_table(out / "metrics.csv")
     assert metrics["trials"] == [16.0, 32.0, 48.0]
     assert metrics["settled_rate"] == [0.0, 0.0, 0.0]  # 0.6 s trials cannot settle
@@ -40,6 +44,8 @@ def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
     assert read_table(out / "trials.csv")["trial"] == list(range(48))
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
     with np.load(out / "policy.npz", allow_pickle=False) as npz:
         assert all(npz[k].dtype == np.float32 for k in npz.files)
 
