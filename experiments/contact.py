@@ -127,7 +127,8 @@ def main(argv=None) -> None:
         "--grasp-model",
         default="board",
         choices=GRASP_MODELS,
-        help="where the grasp errors go (flange: the numbers before issue 24)",
+        help="where the grasp errors go (flange: the peg tilted in the gripper, the model before "
+        "the board's)",
     )
     p.add_argument(
         "--change",

@@ -1,4 +1,5 @@
-"""The CLI boundary (issue 15): nothing a user types loses data or ends in a traceback.
+"""mjx_peg/cli.py, the boundary every command line shares: nothing a user types loses data or ends
+in a traceback.
 
 Every CLI: bad input is one stderr line and exit status 2, before --out is touched; --force moves
 aside only the CLI's own earlier output, never anything else and never an input; results are
@@ -70,7 +71,7 @@ def _unwritable_dir(tmp_path: Path) -> Path:
         return path
 
 
-# -- data loss (each of these failed before issue 15) -----------------------------------------
+# -- data loss: an output never replaces another's, a rerun never loses a result -------------
 
 
 def test_train_force_never_replaces_a_directory_that_is_not_a_run(tmp_path, capsys):
@@ -241,7 +242,7 @@ def test_train_corrupt_checkpoint_is_one_line_naming_it(tmp_path):
         "config = TrainConfig(trials=1, num_envs=1, time_limit_s=0.01)\n"
         "run = RunDir(sys.argv[1]); run.prepare(config, 'new')\n"
         "state = trainer.ppo.init_state(config, trainer.ppo.make_networks(config))\n"
-        "m = run.checkpoints(); trainer._save(m, state); m.close()\n"
+        "m = run.checkpoints(); m.save(int(state.iteration), state); m.close()\n"
         "for f in (run.checkpoint_dir / '0').rglob('*'):\n"
         "    if f.is_file() and f.parent.name == 'd': f.write_bytes(f.read_bytes()[:20])\n"
         "try:\n"
@@ -568,6 +569,7 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
     """SIGINT in the middle of an iteration (the main thread waiting in the jitted PPO step,
     the CPU engine in a host callback): exit 130 within 3 s, every finished iteration kept;
     the same command then finishes with the trials.csv of an uninterrupted run."""
+    import functools
     import signal
     import time
 
@@ -575,8 +577,10 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
             "--checkpoint-every", "3600", "--no-progress", "--processes", "0"]  # fmt: skip
     out = tmp_path / "run"
     env = dict(os.environ)  # the tests' compilation cache: each of the three runs compiles once
+    # SIGINT back to its default in the child: a suite run as a background job ignores it
+    default = functools.partial(signal.signal, signal.SIGINT, signal.SIG_DFL)
     run = subprocess.Popen([sys.executable, *argv, "--out", str(out)], cwd=ROOT, env=env,
-                           stderr=subprocess.PIPE, text=True)  # fmt: skip
+                           stderr=subprocess.PIPE, text=True, preexec_fn=default)  # fmt: skip
     csv = out / "trials.csv"
     deadline = time.monotonic() + 600
     while not (csv.is_file() and len(csv.read_text().splitlines()) > 8):
@@ -598,6 +602,17 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
         _, err = done.communicate(timeout=900)
         assert done.returncode == 0, err[-2000:]
     assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()
+
+
+def test_parse_ranges():
+    assert shared.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
+    assert shared.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
+    assert len(shared.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
+    for bad in ("", " , ", "3:1:1"):
+        with pytest.raises(ValueError, match="--linear-mm is empty"):
+            shared.parse_ranges(bad, "--linear-mm")
+    with pytest.raises(ValueError, match="cannot read"):
+        shared.parse_ranges("1,x", "--linear-mm")
 
 
 @pytest.mark.parametrize(

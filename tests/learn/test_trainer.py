@@ -1,4 +1,5 @@
-"""Training: env semantics, the exported policy, exact resume, devices, CLI errors."""
+"""learn/trainer.py: a run directory holds what it promises, resumes exactly after SIGKILL, starts
+from another run's policy, and runs on two devices or two processes."""
 
 import json
 import os
@@ -12,79 +13,28 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from brax.envs.wrappers.training import VmapWrapper
 
-from mjx_peg.engines import run_trials
-from mjx_peg.learn.config import PRESETS, TrainConfig
+from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import read_table
-from mjx_peg.learn.env import InsertionEnv, specs_from_seeds
 from mjx_peg.learn.ppo import deterministic_actions
-from mjx_peg.learn.trainer import load_state, train
+from mjx_peg.learn.trainer import load_state
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import load_policy
-from mjx_peg.policy.network import controller_vector
 from mjx_peg.skill.search import SKILLS, NamedSkill
 
 ROOT = Path(__file__).resolve().parents[2]
-# A tiny run: 3 iterations of 16 trials of at most 0.6 s.
-# `python train.py` with TINY_ARGS: the quick preset (its skill, the spiral, and its movement)
-TINY = PRESETS["quick"].replace(trials=48, num_envs=16, time_limit_s=0.6, seed=3)
-TINY_ARGS = ["--trials", "48", "--num-envs", "16", "--time-limit", "0.6", "--seed", "3"]
+
 DETERMINISTIC = ("iteration", "trials", "mean_return", "success_rate", "policy_loss", "kl")
 
 
-def _run(args, **kwargs):
-    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
-    return subprocess.run(
-        [sys.executable, "train.py", *args],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        env=env,
-        **kwargs,
-    )
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tiny")
-    summary = train(TINY, out, progress=False)
-    return out, summary
-
-
-def test_env_reset_and_step_are_one_trial():
-    config = TrainConfig(time_limit_s=1.0)
-    centre = config.map_centre()
-    env = VmapWrapper(InsertionEnv(config.task(), config.trial(), action_centre=centre))
-    state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
-    specs = specs_from_seeds(config.task(), np.asarray(state.info["seed"]))
-    np.testing.assert_allclose(state.obs["state"], observation.observe_specs(specs), atol=1e-6)
-    critic = np.concatenate(
-        [observation.observe_specs(specs), observation.privileged_specs(specs)], axis=1
-    )
-    np.testing.assert_allclose(state.obs["privileged_state"], critic, atol=1e-6)
-    action = jnp.zeros((4, 38))
-    after = jax.jit(env.step)(state, action)
-    expected = run_trials(
-        specs, np.asarray(controller_vector(np.zeros((4, 38)), centre)), "mujoco", config.trial()
-    )
-    np.testing.assert_array_equal(after.done, 1.0)
-    np.testing.assert_allclose(after.metrics["return"], expected.reward, rtol=1e-6)
-    np.testing.assert_allclose(after.reward, expected.reward / 38000.0, rtol=1e-6)
-    np.testing.assert_array_equal(after.metrics["success"], expected.success)
-    # the same key is the same trial
-    again = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
-    np.testing.assert_array_equal(again.obs["state"], state.obs["state"])
-
-
-def test_run_dir_holds_the_promised_files(tiny_run):
+def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
     out, summary = tiny_run
     assert summary.finished and summary.trials == 48
     for name in ("config.json", "metrics.csv", "trials.csv", "policy.npz", "manifest.json"):
         assert (out / name).is_file(), name
     assert (out / "training_curve.png").stat().st_size > 10_000
     config = json.loads((out / "config.json").read_text())
-    assert TrainConfig.from_json(config) == TINY
+    assert TrainConfig.from_json(config) == tiny_config
     spiral = NamedSkill("spiral", SKILLS["spiral"])  # the run's skill, every constant recorded
     assert config["skill_constants"] == spiral.record()["constants"]
     metrics = read_table(out / "metrics.csv")
@@ -95,57 +45,9 @@ def test_run_dir_holds_the_promised_files(tiny_run):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
     assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
     with np.load(out / "policy.npz", allow_pickle=False) as npz:
         assert all(npz[k].dtype == np.float32 for k in npz.files)
-
-
-def test_a_rerun_whose_skill_constants_changed_is_refused(tiny_run, monkeypatch, capsys):
-    """The skill's constants are part of a run's config: after one constant of the preset's
-    skill changed, the same command refuses in one line naming --out and the constant."""
-    from mjx_peg.learn import cli
-
-    out, _ = tiny_run
-    before = (out / "config.json").read_bytes()
-    changed = PRESETS["quick"].skill_constants.replace(spiral_speed=0.04)
-    monkeypatch.setitem(PRESETS, "quick", PRESETS["quick"].replace(skill_constants=changed))
-    assert cli.main([*TINY_ARGS, "--no-progress", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"--out {out}" in err
-    assert "skill_constants.spiral_speed: 0.03 there, 0.04 now" in err
-    assert (out / "config.json").read_bytes() == before
-
-
-def test_full_time_limit_flag():
-    from mjx_peg.learn import cli
-
-    args = cli.parser().parse_args([*TINY_ARGS, "--full-time-limit"])
-    config = cli.resolve_config(args)
-    assert config.full_time_limit and not config.trial().end_settled
-    assert TINY.trial().end_settled  # the default: settled failures end early
-
-
-def test_numpy_policy_equals_jax_deterministic_action(tiny_run):
-    out, _ = tiny_run
-    config, state = load_state(out)
-    obs = np.random.default_rng(0).normal(size=(1000, observation.OBS_SIZE)).astype(np.float32)
-    jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
-    np_action = load_policy(out).act(obs)
-    assert np.max(np.abs(np_action - jax_action)) < 1e-5
-
-
-def test_prior_starts_at_the_baseline():
-    config = TINY
-    from mjx_peg.learn.ppo import init_state, make_networks
-    from mjx_peg.skill.baseline import baseline_params
-
-    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
-    base = baseline_params()
-    for cfg in (config, config.replace(action_map="sigmoid")):
-        state = init_state(cfg, make_networks(cfg))
-        vec = controller_vector(deterministic_actions(cfg, state, obs), cfg.map_centre())
-        vec = np.asarray(vec)
-        np.testing.assert_allclose(vec[:, :2], np.broadcast_to(base[:2], (64, 2)), rtol=0.3)
-        assert np.all(vec[:, 2] > 1.2e-3)  # lateral compliance near the baseline's 1.8e-3 m/N
 
 
 def test_init_from_a_shipped_policy_starts_at_its_actions():
@@ -153,14 +55,14 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     observation statistics, counted as its trials; the exploration std and the critic fresh."""
     from mjx_peg.learn import cli
     from mjx_peg.learn.ppo import init_state, make_networks
-    from mjx_peg.learn.trainer import _load_init
+    from mjx_peg.learn.trainer import load_init
 
     config = cli.resolve_config(
         cli.parser().parse_args(["--preset", "transfer", "--init-from", "paper"])
     )
     assert Path(config.init_from).resolve() == ROOT / "policies" / "paper"
     template = init_state(config, make_networks(config))
-    state = _load_init(config, template)
+    state = load_init(config, template)
     shipped = load_policy("paper")
     obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
     action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
@@ -180,10 +82,10 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
 
 
 @pytest.mark.slow
-def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path):
+def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path, tiny_args, train_py):
     reference, _ = tiny_run
     out = tmp_path / "killed"
-    args = ["--out", str(out), "--checkpoint-every", "0", "--no-progress", *TINY_ARGS]
+    args = ["--out", str(out), "--checkpoint-every", "0", "--no-progress", *tiny_args]
     env = {**os.environ, "JAX_PLATFORMS": "cpu"}
     proc = subprocess.Popen(
         [sys.executable, "train.py", *args],
@@ -198,7 +100,7 @@ def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert not (out / "policy.npz").exists(), "the run finished before it was killed"
-    done = _run(args)
+    done = train_py(args)
     assert done.returncode == 0, done.stderr
     a, b = read_table(reference / "metrics.csv"), read_table(out / "metrics.csv")
     for column in DETERMINISTIC:
@@ -235,31 +137,8 @@ def test_two_forced_host_devices(tmp_path):
     assert returns[:8] != returns[8:16]
 
 
-def test_cli_bad_input_is_one_line(tmp_path, tiny_run):
-    reference, _ = tiny_run
-    broken = tmp_path / "broken"
-    broken.mkdir()
-    for name in ("config.json", "manifest.json"):
-        (broken / name).write_bytes((reference / name).read_bytes())
-    (broken / "policy.npz").write_bytes((reference / "policy.npz").read_bytes()[:100])
-    cases = [
-        ["--preset", "nope"],
-        ["--trials", "-5"],
-        ["--preset", "transfer", "--init-from", str(tmp_path)],
-        ["--preset", "transfer", "--init-from", str(broken)],
-        ["--preset", "transfer", "--init-from", "baseline"],
-        ["--out", str(reference), *TINY_ARGS],  # a finished run, no --force
-    ]
-    for args in cases:
-        done = _run(args)
-        assert done.returncode == 2, (args, done.stderr)
-        lines = done.stderr.strip().splitlines()
-        assert len(lines) == 1 and lines[0].startswith("train.py: error:"), (args, done.stderr)
-    assert "--force" in _run(["--out", str(reference), *TINY_ARGS]).stderr
-
-
 @pytest.mark.slow
-def test_distributed_two_local_processes(tmp_path):
+def test_distributed_two_local_processes(tmp_path, tiny_args):
     import socket
 
     with socket.socket() as s:
@@ -275,7 +154,7 @@ def test_distributed_two_local_processes(tmp_path):
             "JAX_NUM_PROCESSES": "2",
             "JAX_PROCESS_ID": str(i),
         }
-        args = ["--distributed", "--out", str(out), "--no-progress", *TINY_ARGS[:2]]
+        args = ["--distributed", "--out", str(out), "--no-progress", *tiny_args[:2]]
         args += ["--num-envs", "16", "--time-limit", "0.6"]
         procs.append(
             subprocess.Popen(
