@@ -52,8 +52,9 @@ class Step:
     fresh: str = ""  # a path removed before the step's first start
 
 
-def steps(out: str, commit: str) -> list[Step]:
-    """Every step, in the order they run (the grids the later ones compare with come first)."""
+def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
+    """Every step, in the order they run (the grids the later ones compare with come first);
+    `results`: where the contact sets, zero error and the arm's runs go."""
     # fmt: off
     py = sys.executable
     train = [
@@ -100,7 +101,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
 
     def contact(name, expect_s, *args):
-        argv = (py, "experiments/contact.py", *args, "--csv", f"{RESULTS}/contact/{name}.csv")
+        argv = (py, "experiments/contact.py", *args, "--csv", f"{results}/contact/{name}.csv")
         return Step(name, argv, expect_s)
 
     base = ("--skill", "spiral")
@@ -128,7 +129,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
     zero = Step("zero", (py, "experiments/failures.py", *paper, "--linear-mm", "0",
                          "--angular-deg", "0", "--shape", "circle,square,triangle",
-                         "--trials", "60", "--seed", "7", "--out", f"{RESULTS}/zero_error.npz"), 6)
+                         "--trials", "60", "--seed", "7", "--out", f"{results}/zero_error.npz"), 6)
     arm = []
     for shape in ("circle", "square"):
         for variant, extra in (("500", ()), ("lag", ("--actuator-lag-ms", "5")),
@@ -136,8 +137,8 @@ def steps(out: str, commit: str) -> list[Step]:
             name = f"arm_{shape}_{variant}"
             argv = (py, "-m", "mjx_peg.robot", *paper, "--shape", shape, "--linear-mm", "4",
                     "--angular-deg", "6", "--trials", "25", "--seed", "0", *extra, "--out",
-                    f"{RESULTS}/arm/{name}")
-            arm.append(Step(name, argv, 35, f"{RESULTS}/arm/{name}"))
+                    f"{results}/arm/{name}")
+            arm.append(Step(name, argv, 35, f"{results}/arm/{name}"))
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
                              "docs/vision/act"), 310, "docs/vision/act")
     nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
@@ -162,13 +163,14 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"
 
 
-def run(chosen: list[Step], out: Path) -> int:
-    """Run the steps not yet done, one at a time, niced; 0, or 1 at the first that fails."""
+def run(chosen: list[Step], out: Path, results: str = RESULTS) -> int:
+    """Run the steps not yet done, one at a time, niced; then write the results page (where
+    `results` is the shipped folder). 0, or 1 at the first step that fails."""
     todo = [s for s in chosen if not (out / f"{s.name}.done").exists()]
     for s in chosen:
         if s not in todo:
             print(f"{s.name}: done before, skipped")
-    (ROOT / RESULTS / "contact").mkdir(parents=True, exist_ok=True)
+    (ROOT / results / "contact").mkdir(parents=True, exist_ok=True)
     spent = expected = 0.0
     for k, step in enumerate(todo, 1):
         rest = sum(s.expect_s for s in todo[k - 1 :]) * (spent / expected if expected else 1.0)
@@ -190,9 +192,11 @@ def run(chosen: list[Step], out: Path) -> int:
         (out / f"{step.name}.done").write_text(f"{wall:.1f}\n")
         spent, expected = spent + wall, expected + step.expect_s
         print(f"    done in {_minutes(wall)}", flush=True)
+    print(f"every step done: the grids in {EVAL}/*/, the rest in {results}/, the logs in {out}/")
+    if results != RESULTS:
+        return 0  # the results page reads the shipped folder only
     from results_page import main as write_results_page  # this folder's; it imports this module
 
-    print(f"every step done: the grids in {EVAL}/*/, the rest in {RESULTS}/, the logs in {out}/")
     return write_results_page([])
 
 
@@ -203,10 +207,13 @@ def main(argv=None) -> int:
     p.add_argument("--only", default="", help="comma-separated fnmatch patterns of step names")
     p.add_argument("--skip-nominal", action="store_true", help="not the nominal grid (32 min)")
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
+    p.add_argument("--results", default=RESULTS,
+                   help=f"the contact sets, zero error and the arm's runs (default: {RESULTS}, "
+                   "which the results page reads; elsewhere, the page is not written)")  # fmt: skip
     args = p.parse_args(argv)
     out = args.out if args.out.is_absolute() else Path.cwd() / args.out
     head = _head()
-    chosen = steps(str(out), head)
+    chosen = steps(str(out), head, str(args.results))
     if args.only:
         patterns = [x for x in args.only.split(",") if x]
         chosen = [s for s in chosen if any(fnmatch.fnmatch(s.name, x) for x in patterns)]
@@ -232,7 +239,7 @@ def main(argv=None) -> int:
         return 2
     mark.write_text(head + "\n")
     try:
-        return run(chosen, out)
+        return run(chosen, out, str(args.results))
     except KeyboardInterrupt:
         print("interrupted: rerun the same command to resume", file=sys.stderr)
         return 130
