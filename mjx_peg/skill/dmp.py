@@ -24,7 +24,7 @@ duration T (`DMPConfig.duration`), during which the phase decays from 1 to exp(-
 (`DMPConfig.phase_span`). tau stays 1 s, so the learned gains keep their meaning (K = omega^2);
 T = 2 s (not 1 s) slows the approach so that the peg meets the board gently: the minimum-jerk
 profile of the 120-160 mm descent peaks at 1.9 x travel / T, and the first impact's force grows
-with the speed (docs/compliance_loop.md, "The approach's duration"). The forcing weights w_i
+with the speed (docs/design/compliance_loop.md, "The approach's duration"). The forcing weights w_i
 are not learned: `fit_forcing_weights` fits them once, by locally weighted regression, for
 the reference stiffness `k_ref`.
 

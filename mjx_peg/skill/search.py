@@ -317,7 +317,7 @@ def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, g
                      dt: float):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
-    `align_max_yaw`, where set: docs/tilted_hole.md, "The yaw during the spiral"); from the
+    `align_max_yaw`, where set: docs/design/tilted_hole.md, "The yaw during the spiral"); from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
     force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
     (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a). Zero rate:

@@ -25,7 +25,7 @@ def test_baseline_inserts_without_errors(shape):
     compliance ignores the sensor's residual bias (a dead band of 2 N and 0.4 N m). Without
     it the bias alone, +-1 N and +-0.1 N m, shifts the baseline's goal by up to ~2 mm through its
     compliance, more than the circle's 0.75 mm clearance (60 trials of seed 7: circle 90 %,
-    triangle 81.7 %; docs/zero_error.md)."""
+    triangle 81.7 %; docs/design/zero_error.md)."""
     specs = _specs(shape, 100, seed=1, **NO_ERRORS)
     config = TrialConfig(force_deadband=2.0, moment_deadband=0.4)
     result = run_trials(specs, baseline_params(), engine="mujoco", config=config)
