@@ -157,6 +157,11 @@ def save_policy(
     run it with (default: the one `config` trained with); `layout`: its observation layout
     (default: the one `config` names, `TrainConfig.observation`)."""
     layout = observation.check_layout(layout or file_versions.train_config(config)["observation"])
+    width = len(observation.LAYOUTS[layout])
+    assert np.shape(layers[0][0])[0] == width == np.size(obs_mean) == np.size(obs_std), (
+        f"a policy of the {layout} layout reads {width} numbers: its first layer and the "
+        "observation statistics must match"
+    )
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     arrays = {
@@ -269,6 +274,11 @@ def load_policy(path) -> Policy:
             f"{npz_path} lacks the array {e} that {manifest_path.name} names"
         ) from None
     width = len(expected)
+    if shapes and shapes[0][0] != width:
+        raise PolicyError(
+            f"{npz_path}: the network reads {shapes[0][0]} numbers, the {layout} observation "
+            f"layout {width}"
+        )
     for i, ((kernel, bias), shape) in enumerate(zip(layers, shapes, strict=True)):
         if kernel.shape != shape or bias.shape != (shape[1],) or shape[0] != width:
             raise PolicyError(f"{npz_path}: layer {i} has shape {kernel.shape}, expected {shape}")
