@@ -196,7 +196,7 @@ def build_mjcf(shape: str, size: float, hole_scale: float | None = None) -> str:
     """The full scene's MJCF (a standalone XML string) for `shape` in SHAPES, `size` in m and
     the hole's clearance `hole_scale` (hole size / peg size; None: the shape's paper fit).
 
-    size is the characteristic size S (constants.SHAPES says what it measures for each shape).
+    size is the characteristic size S (`parts.py` says what it measures for each shape).
     Raises UsageError for an unknown shape, a size that is not a finite number > 0 or a hole
     scale outside HOLE_SCALE_RANGE.
     """

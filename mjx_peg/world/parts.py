@@ -71,8 +71,8 @@ def check_hole_scale(shape: str, hole_scale: float | None = None) -> float:
 
 
 def fit_text(shape: str, hole_scale: float) -> str:
-    """ " (hole 1.02 S)" for a hole scale other than the shape's paper fit, "" for that fit: what
-    the command lines add to a part's name."""
+    """What the command lines add to a part's name: " (hole 1.02 S)" for a hole scale other than
+    the shape's paper fit, nothing for that fit."""
     return "" if float(hole_scale) == HOLE_SCALE[shape] else f" (hole {float(hole_scale):g} S)"
 
 
