@@ -22,6 +22,7 @@ from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
+from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
@@ -84,6 +85,10 @@ class TrainConfig:
     # Its constants (a SkillConfig, or its JSON record); None: the named skill's
     # (search.named_skill). config.json records every one.
     skill_constants: SkillConfig | None = None
+    # The policy's observation layout (policy.observation.LAYOUTS): "geometry" reads the part by
+    # its geometry, "names" by a one-hot of the paper's three shapes; config.json files without
+    # it were "names" (file_versions)
+    observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -103,6 +108,7 @@ class TrainConfig:
             raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
+        check_layout(self.observation)
         if self.engine not in ENGINES:
             raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):

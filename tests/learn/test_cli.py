@@ -48,3 +48,21 @@ def test_a_rerun_whose_skill_constants_changed_is_refused(tiny_run, tiny_args, m
     assert len(err.splitlines()) == 1 and f"--out {out}" in err
     assert "skill_constants.spiral_speed: 0.03 there, 0.04 now" in err
     assert (out / "config.json").read_bytes() == before
+
+
+def test_init_from_takes_its_runs_observation_layout():
+    """--init-from a run trained on the names layout (policies/paper) reads that layout; asking
+    for another is one line; a new run reads the geometry layout unless told."""
+    import pytest
+
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn import cli
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv)))
+
+    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "names"
+    assert resolve().observation == "geometry"
+    assert resolve("--observation", "names").observation == "names"
+    with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
+        resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")

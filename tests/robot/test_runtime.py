@@ -354,7 +354,8 @@ def test_cli_runs_and_reports(tmp_path, capsys):
         (["--policy", "no/such/run"], "--policy no/such/run: no such run directory"),
         (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
         (["--time-limit", "nan"], "--time-limit must be a number in [0.01, 600] s, got 'nan'"),
-        (["--shape", "hexagon"], "argument --shape: invalid choice"),
+        (["--shape", "octagon"], "argument --shape: invalid choice"),
+        (["--hole-scale", "loose"], "--hole-scale must be paper or tight or a number in [1.01,"),
     ],
 )
 def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
@@ -366,9 +367,10 @@ def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"shape": "hexagon"}, "hole shape must be one of"),
+        ({"shape": "octagon"}, "hole shape must be one of"),
         ({"size": 0.0}, "hole size must be positive"),
         ({"x": float("nan")}, "hole x must be a finite number"),
+        ({"hole_scale": 1.5}, r"hole scale \(hole size / peg size\) must lie in \[1.01, 1.25\]"),
     ],
 )
 def test_hole_estimate_rejects_bad_values(kwargs, message):
@@ -386,3 +388,19 @@ def test_sim_arm_rejects_bad_arguments():
     with pytest.raises(ValueError, match="actuator_lag_s must be a number >= 0"):
         SimArm(specs, 0, actuator_lag_s=-0.005)
     assert constants.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
+
+
+def test_a_hole_estimate_gives_either_observation_of_its_part():
+    """The hole's clearance defaults to the shape's paper fit; the estimate observes itself in
+    the names layout (the shipped policies') or the geometry one, as the policy asks."""
+    from mjx_peg.policy import observation
+
+    hole = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03)
+    assert hole.hole_scale == 1.08
+    tight = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03, 1.02)
+    args = (np.array([4]), np.array([0.03]), np.array([1.02]), np.array([[0.45, -0.1]]))
+    np.testing.assert_array_equal(
+        tight.observation("geometry"), observation.observe_geometry(*args, np.array([0.3]))
+    )
+    assert tight.observation().shape == (1, 8) and tight.observation("geometry").shape == (1, 9)
+    assert tight.observation("geometry")[0, 7] == pytest.approx(0.02 * 0.0075 / 0.001)
