@@ -6,7 +6,7 @@
 Runs the hand-tuned baseline on `--trials` 50 mm trials (`--shapes`, `--skill`) at 3 mm / 4 deg
 on the mujoco engine with 1 lane and with `--threads` lanes (default: every core) as threads of
 this process and as worker processes, with each control-period pass of `--passes` (the NumPy
-pass, the compiled one: `run_trials(compiled=...)`), every failure to the time limit, and reports
+pass, the compiled one: `run_on_cpu(compiled=...)`), every failure to the time limit, and reports
 physics steps/s and trials/s. In the same run, two references: the states the engine visited (a
 snapshot every `--replay-every` steps, contacts included) replayed with plain `mj_step` and the
 recorded torques held, no controller, on as many processes as lanes (the ceiling), and the same
@@ -46,7 +46,7 @@ STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 def time_engine(specs, params, config, threads, compiled, processes=None):
     """(result, wall s, CPU s of this process: all its threads)."""
     start, cpu = time.perf_counter(), time.process_time()
-    result = cpu_engine.run_trials(specs, params, config, threads=threads, compiled=compiled,
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=threads, compiled=compiled,
                                    processes=processes)  # fmt: skip
     return result, time.perf_counter() - start, time.process_time() - cpu
 
@@ -55,10 +55,10 @@ def call_overhead(specs, params, threads, compiled, calls=20):
     """Median wall time (s) of a call running 2 trials of one step each."""
     config = TrialConfig(time_limit_s=TrialConfig().timestep)
     two, times = specs.take(np.arange(2)), []
-    cpu_engine.run_trials(two, params, config, threads=threads, compiled=compiled)  # compiles
+    cpu_engine.run_on_cpu(two, params, config, threads=threads, compiled=compiled)  # compiles
     for _ in range(calls):
         start = time.perf_counter()
-        cpu_engine.run_trials(two, params, config, threads=threads, compiled=compiled)
+        cpu_engine.run_on_cpu(two, params, config, threads=threads, compiled=compiled)
         times.append(time.perf_counter() - start)
     return float(np.median(times))
 
@@ -81,7 +81,7 @@ def record_states(specs, params, config, every):
             mujoco.mj_getState(m, d, state, STATE)
             snaps.append((int(lane.spec_index[i]), state))
 
-    cpu_engine.run_trials(specs, params, config, threads=1, observer=observe)
+    cpu_engine.run_on_cpu(specs, params, config, threads=1, observer=observe)
     return snaps
 
 
@@ -150,10 +150,10 @@ class StageTimes:
 
 
 def profile_parts(specs, params, config, compiled, unprofiled_wall=None):
-    """µs per env-step by stage of one lane in this process (`run_trials(profile=...)`)."""
+    """µs per env-step by stage of one lane in this process (`run_on_cpu(profile=...)`)."""
     times = StageTimes()
     start = time.perf_counter()
-    result = cpu_engine.run_trials(specs, params, config, threads=1, profile=times,
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=1, profile=times,
                                    compiled=compiled)  # fmt: skip
     wall = time.perf_counter() - start
     steps, periods = int(result.steps.sum()), times.calls["step"]
@@ -181,10 +181,10 @@ def time_mjx(specs, params, config, batch):
     from mjx_peg.engines import mjx as mjx_engine
 
     start = time.perf_counter()
-    mjx_engine.run_trials(specs, params, config, batch=batch)  # compile + first run
+    mjx_engine.run_on_device(specs, params, config, batch=batch)  # compile + first run
     first = time.perf_counter() - start
     start = time.perf_counter()
-    result = mjx_engine.run_trials(specs, params, config, batch=batch)
+    result = mjx_engine.run_on_device(specs, params, config, batch=batch)
     elapsed = time.perf_counter() - start
     return result, elapsed, first - elapsed, jax.devices()[0].device_kind
 
@@ -230,9 +230,9 @@ def main() -> None:
     warm = specs.take(np.arange(4))
     for name in passes:  # warm-up: the compiled programs of every slot count used below
         for threads in sorted({1, args.threads}):
-            cpu_engine.run_trials(warm, params, full, threads=threads, compiled=PASSES[name],
+            cpu_engine.run_on_cpu(warm, params, full, threads=threads, compiled=PASSES[name],
                                   slots_per_thread=-(-len(specs) // threads))  # fmt: skip
-        cpu_engine.run_trials(warm, params, full, processes=args.threads, compiled=PASSES[name],
+        cpu_engine.run_on_cpu(warm, params, full, processes=args.threads, compiled=PASSES[name],
                               slots_per_thread=-(-len(specs) // args.threads))  # fmt: skip
 
     snaps = record_states(specs, params, full, args.replay_every)

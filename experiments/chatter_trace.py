@@ -1,5 +1,5 @@
 """Where a trial's chatter comes from: one trial of an evaluation replayed, its true axial force
-against what the compliance sees (docs/rim_chatter.md).
+against what the compliance sees (docs/design/rim_chatter.md).
 
     python experiments/chatter_trace.py --eval docs/eval/paper_spiral_50mm_small_board \\
         --range 71 --trial 4 [--contacts-at 59.0] [--search 'NAME=V;...'] [--npz F]
@@ -62,7 +62,7 @@ def replay(args) -> tuple[dict, dict]:
     if changes:
         print("search constants:", "; ".join(f"{k}={v}" for k, v in changes.items()))
     params = as_controller_params(params, 1)
-    engine.run_trials(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
+    engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
     trace = {k: np.asarray(v) for k, v in trace.items()}
     trace["dt"] = config.timestep
     trace["hole_xy"] = np.asarray(specs.board_pos[0])

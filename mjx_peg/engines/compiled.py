@@ -77,7 +77,7 @@ class Programs:
         ended = end.ended & live
         meas = sims.period_measurement(m)
         new, torques, wrench = period.advance(cfg, self.control, self.basis, consts, state, meas,
-                                              ~ended)  # fmt: skip
+                                              going=~ended)  # fmt: skip
 
         def outcome():
             # The ring after the advance: a trial that ended kept its own (read before the write,

@@ -1,6 +1,6 @@
 """`python train.py`: learn the 38 controller numbers with Brax PPO (presets in learn/config.py).
 
-    python train.py                                  # quick preset, CPU, under 10 minutes
+    python train.py                                  # the quick preset, on the CPU
     python train.py --preset paper --out runs/paper  # the paper's training conditions
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
     python train.py --preset transfer --init-from paper --out runs/transfer  # policies/paper
@@ -17,11 +17,12 @@ import argparse
 import os
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.policy.observation import LAYOUTS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
@@ -69,12 +70,12 @@ def parser() -> argparse.ArgumentParser:
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
     p.add_argument(
-        "--workers",
-        type=cli.WORKERS,
+        "--threads",
+        type=cli.THREADS,
         help="CPU engine threads: per worker process (default 1), or of this process with "
         "--processes 0 (default: all cores)",
     )
-    cli.add_processes_option(p, "--workers")
+    cli.add_processes_option(p, "--threads")
     cli.add_ray_option(p)
     p.add_argument(
         "--action-map",
@@ -82,8 +83,15 @@ def parser() -> argparse.ArgumentParser:
         help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
+    p.add_argument(
+        "--observation",
+        choices=tuple(LAYOUTS),
+        help="what the policy reads of a part (default geometry: symmetry order, radii, "
+        "clearance, depth; names: a one-hot of the paper's three shapes and the size, the "
+        "shipped policies'; --init-from takes its run's)",
+    )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
-    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (spiral)")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -112,6 +120,7 @@ def resolve_config(args):
         "action_map": args.action_map,
         "grasp_model": args.grasp_model,
         "skill": args.skill,
+        "observation": args.observation,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.preset == "transfer" and not config.init_from:
@@ -119,13 +128,20 @@ def resolve_config(args):
     if config.init_from:
         config = config.replace(init_from=resolve_policy(config.init_from, "--init-from", False))
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
-        source = RunDir(config.init_from).read_config().action_map
+        trained = RunDir(config.init_from).read_config()
+        source = trained.action_map
         if args.action_map not in (None, source):
             raise UsageError(
                 f"--action-map {args.action_map}: {config.init_from} was trained with the {source}"
                 " map, and its networks mean that map's actions"
             )
-        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source)
+        if args.observation not in (None, trained.observation):
+            raise UsageError(
+                f"--observation {args.observation}: {config.init_from} was trained on the "
+                f"{trained.observation} layout, and its networks read that layout"
+            )
+        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source,
+                                observation=trained.observation)  # fmt: skip
     return config
 
 
@@ -165,15 +181,15 @@ def main(argv=None) -> int:
 
     engine = resolve_engine(config.engine)
     if args.ray is not None:
-        options = cli.ray_options(args, engine, ("--workers",))
+        options = cli.ray_options(args, engine, ("--threads",))
     else:
         options = {
-            "workers": args.workers,
+            "threads": args.threads,
             "processes": cli.resolve_processes(args.processes, engine),
         }
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
-        cli.check_apart(out, {"--init-from": config.init_from})
+        outdir.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
         join_distributed()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted

@@ -2,9 +2,8 @@
 
 Presets (`python train.py --preset NAME`), each with the spiral contact search (`--skill spiral`,
 an extension, skill/search.py; `--skill paper` trains the paper's skill as written):
-- `quick` (default): the paper's training conditions at 44 % of its budget: circle + square at
-  50 mm, errors up to +-8 mm / +-12 deg, a 20 s trial limit, 3,584 trials; ~8 min on a 2-core
-  CPU.
+- `quick` (default, `TrainConfig()`): the paper's training conditions at 44 % of its budget:
+  circle + square at 50 mm, errors up to +-8 mm / +-12 deg, a 20 s trial limit, 3,584 trials.
 - `paper`: the paper's training conditions (section 5.2): circle + square at 50 mm, errors up to
   +-8 mm / +-12 deg, friction 0.2-0.9; 8,192 trials (the paper's curve levels off after ~8,000).
 - `transfer`: re-train a finished run (`--init-from RUN_DIR`) on the unseen triangle, same
@@ -23,8 +22,9 @@ from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
+from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -37,23 +37,21 @@ ACTION_MAPS = ("centred", "sigmoid")
 
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
-    """Everything that defines a training run (written to RUN_DIR/config.json)."""
+    """Everything that defines a training run (written to RUN_DIR/config.json); the defaults are
+    the default preset, `quick`."""
 
     preset: str = "quick"
     shapes: tuple[str, ...] = ("circle", "square")
     size_mm: tuple[float, ...] = (50.0,)
-    linear_mm: float = 4.0  # +- localization x, y and grasp z error range
-    angular_deg: float = 6.0  # +- localization yaw and grasp tilt range
-    # Per training trial. Under credible contact (a filtered, delayed sensor, compliance damping,
-    # a 2 s approach) the baseline inserts in 14.7 s at the median (500 trials, 60 s): the 3-5 s
-    # limits used before left almost every trial a failure and nothing to learn from.
+    linear_mm: float = 8.0  # +- localization x, y and grasp z error range (the paper's)
+    angular_deg: float = 12.0  # +- localization yaw and grasp tilt range (the paper's)
+    # Per training trial: long enough that the baseline's trials end, not all as failures
+    # (docs/design/training_presets.md)
     time_limit_s: float = 20.0
-    trials: int = 12288  # budget, rounded up to whole iterations
+    trials: int = 3584  # budget, rounded up to whole iterations (14 of 256)
     num_envs: int = 256  # trials per iteration (split across devices)
     # One full-batch gradient step per epoch: a 38-dim contextual bandit with a noisy binary
-    # outcome; minibatches of 32-64 trials made each iteration chase noise (KL 0.1-0.2 per
-    # iteration, no progress over 1,500 trials), and on a synthetic bandit of the same shape
-    # full-batch steps reached 0.52 of an optimal 0.55 success where minibatches stalled at 0.47.
+    # outcome, where minibatches chase the noise (docs/design/training_presets.md)
     num_minibatches: int = 1
     update_epochs: int = 4
     learning_rate: float = 1e-3
@@ -81,9 +79,16 @@ class TrainConfig:
     # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
     # paper's); config.json files without it were "flange" (the peg in the gripper)
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"; config.json
-    # files without it were "paper"
-    skill: str = "paper"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours;
+    # config.json files without it were "paper" (file_versions)
+    skill: str = "spiral"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one.
+    skill_constants: SkillConfig | None = None
+    # The policy's observation layout (policy.observation.LAYOUTS): "geometry" reads the part by
+    # its geometry, "names" by a one-hot of the paper's three shapes; config.json files without
+    # it were "names" (file_versions)
+    observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -103,6 +108,7 @@ class TrainConfig:
             raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
+        check_layout(self.observation)
         if self.engine not in ENGINES:
             raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):
@@ -127,7 +133,8 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        skill_config(self.skill)  # a known skill
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -151,7 +158,7 @@ class TrainConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
         )
 
     def map_centre(self):
@@ -159,10 +166,16 @@ class TrainConfig:
         return baseline_params() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
+        """A copy with `changes`; another skill comes with its own constants unless given."""
+        if "skill" in changes and "skill_constants" not in changes:
+            changes["skill_constants"] = None
         return dataclasses.replace(self, **changes)
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        return {
+            **dataclasses.asdict(self),
+            "skill_constants": constants_record(self.skill_constants),
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> TrainConfig:
@@ -177,22 +190,18 @@ class TrainConfig:
 
 
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with
-# the spiral: every preset is this one with a budget or a shape changed.
-_PAPER = TrainConfig(preset="paper", linear_mm=8.0, angular_deg=12.0, trials=8192, skill="spiral")
+# the spiral: every preset is the default one with a budget or a shape changed.
+_PAPER = TrainConfig(preset="paper", trials=8192)
 
 PRESETS: dict[str, TrainConfig] = {
-    # 3,584 trials (14 iterations): python train.py in under 10 minutes on 2 cores (BENCHMARKS.md,
-    # "Training"). At the paper's error ranges: at +-4 mm / +-6 deg the starting controller
-    # already inserts 97.4 % and leaves too few failures to learn from (docs/guide/training.md)
-    "quick": _PAPER.replace(preset="quick", trials=3584),
+    # 3,584 trials at the paper's error ranges: python train.py on 2 cores in minutes
+    # (docs/design/training_presets.md)
+    "quick": TrainConfig(),
     "paper": _PAPER,
     "transfer": _PAPER.replace(
         preset="transfer",
         shapes=("triangle",),
         trials=800,
-        # Before credible contact, 20 updates of 40 trials: 10 of 80 left triangle success at
-        # 4 mm / 6 deg at 42.8 % against 40.0 % before transfer (McNemar p = 0.07); 20 of 40
-        # reached 49.6 % (p = 8e-7). Under the credible trial it lowers it (README "Training").
-        num_envs=40,
+        num_envs=40,  # 20 updates of 40 trials (docs/design/training_presets.md)
     ),
 }

@@ -19,16 +19,17 @@ import jax.experimental.multihost_utils
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import checkpoints, ppo
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
-from mjx_peg.learn.env import PRIVILEGED_SIZE, InsertionEnv
+from mjx_peg.learn.env import InsertionEnv
 from mjx_peg.learn.run_dir import RunDir
 from mjx_peg.policy.export import PolicyError, load_policy, save_policy
+from mjx_peg.policy.observation import PRIVILEGED_NAMES
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ def _save(saved: Checkpoints, state: ppo.TrainingState) -> None:
     saved.save(int(state.iteration), state)
 
 
-def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
+def load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
     """Start from another run's networks and observation statistics (fresh optimizer): its last
     Orbax checkpoint, or, where it has none (a shipped policy under policies/), its exported
     policy (`_from_export`)."""
@@ -65,6 +66,11 @@ def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.Training
     other = source.read_config()
     has_checkpoint = checkpoints.has_steps(source.checkpoint_dir)  # else its critic is not used
     critic_differs = has_checkpoint and other.value_hidden != config.value_hidden
+    if other.observation != config.observation:
+        raise UsageError(
+            f"--init-from {source.path} observes the {other.observation} layout, this run the "
+            f"{config.observation} one"
+        )
     if other.policy_hidden != config.policy_hidden or critic_differs:
         raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
@@ -100,7 +106,7 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
         "Dense_0": head,
     }
     params = template.params.replace(policy={"params": tree})
-    extra = PRIVILEGED_SIZE - policy.obs_mean.size
+    extra = len(PRIVILEGED_NAMES)
     mean = {
         "state": policy.obs_mean,
         "privileged_state": np.concatenate([policy.obs_mean, np.zeros(extra, np.float32)]),
@@ -141,7 +147,9 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
         },
     )
     title = f"{config.preset}: {run.path.name}"
-    cli.write_atomic(run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title))
+    outdir.write_atomic(
+        run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title)
+    )
 
 
 def train(
@@ -174,14 +182,13 @@ def train(
     resuming = plan == "resume" and checkpoints.has_steps(run.checkpoint_dir)
     initial = None
     if config.init_from and not resuming:
-        initial = _load_init(config, state)  # read before `out` is touched
+        initial = load_init(config, state)  # read before `out` is touched
     if primary:
         run.prepare(config, plan, note)
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
-    env = InsertionEnv(
-        config.task(), config.trial(), config.engine, engine_options, config.map_centre()
-    )
+    env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options,
+                       config.map_centre(), config.observation)  # fmt: skip
     manager = run.checkpoints()
     if plan == "resume" and manager.latest_step() is not None:
         try:
@@ -193,7 +200,7 @@ def train(
             run.truncate_tables(int(state.trials))
     else:
         if config.init_from:
-            state = initial if initial is not None else _load_init(config, state)
+            state = initial if initial is not None else load_init(config, state)
         if primary:
             run.start_tables()
     step = ppo.make_iteration(env, config)

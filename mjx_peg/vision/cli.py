@@ -7,7 +7,7 @@
     mjx-peg-vision evaluate --model runs/vision/model --data runs/vision/data/test \
         --out runs/vision/eval/test
     mjx-peg-vision localize IMAGE.png --camera CALIB.json [--model runs/vision/model]
-    mjx-peg-vision act --policy paper --skill spiral --out runs/vision/act
+    mjx-peg-vision act --policy paper --out runs/vision/act
     mjx-peg-vision figures --model runs/vision/model --data runs/vision/data/test
 
 `evaluate`, `localize`, `act` and `figures` read the shipped localizer (`policies/localizer`)
@@ -24,10 +24,10 @@ import argparse
 import json
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 
 PROG = "mjx-peg-vision"
 TRAIN_OUT = Path("runs/vision/model")  # where `train` writes a new localizer
@@ -35,6 +35,11 @@ SHIPPED_MODEL = SHIPPED_DIR / "localizer"  # the localizer the other commands re
 COUNT = cli.integer(1, 1_000_000)  # images in a split
 PIXELS = cli.integer(64, 2048)  # image width, height
 STEPS = cli.integer(1, 1_000_000)  # training steps of one network
+
+
+def _note(text: str) -> None:
+    """A one-line notice of this command on stderr."""
+    cli.note(PROG, text)
 
 
 def _csv(text: str) -> tuple[str, ...]:
@@ -68,8 +73,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--condition", choices=("nominal", "dark", "camera-off"), default="nominal")
     r.add_argument("--width", type=PIXELS, default=1280, help="default 1280")
     r.add_argument("--height", type=PIXELS, default=960, help="default 960")
-    r.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
-    r.add_argument("--sizes", default="25,50,60", help="sizes S in mm, of 25, 50, 60")
+    r.add_argument(
+        "--shapes",
+        default="circle,square,triangle",
+        help="comma-separated, of circle, square, triangle, hexagon, rectangle (the localizer "
+        "learns the first three)",
+    )
+    r.add_argument(
+        "--sizes",
+        default="25,50,60",
+        help="sizes S in mm, each in 10..80 (the localizer learns 25, 50, 60)",
+    )
     _force(r, "an earlier split (any options)")
 
     t = sub.add_parser("train", help="train the localizer (CPU), export npz + json")
@@ -93,6 +107,11 @@ def build_parser() -> argparse.ArgumentParser:
     lo.add_argument("image", type=path, help="PNG or JPEG from the calibrated camera")
     lo.add_argument("--camera", type=path, required=True, help="calibration JSON (camera.py)")
     lo.add_argument("--model", **_MODEL)
+    lo.add_argument(
+        "--shape",
+        help="the part's shape, when known: its yaw is read at that shape's symmetry; a shape "
+        "the localizer cannot localize is refused (default: the shape it classifies)",
+    )
 
     a = sub.add_parser("act", help="vision to action: trials with the localizer's estimates")
     a.add_argument("--model", **_MODEL)
@@ -107,8 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--trials", type=cli.TRIALS, default=200, help="per shape, default 200")
     a.add_argument("--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial")
     a.add_argument("--seed", type=cli.SEED, default=0)
-    a.add_argument("--workers", type=cli.WORKERS, help="engine lanes (default: every core)")
-    cli.add_skill_option(a, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    a.add_argument("--threads", type=cli.THREADS, help="engine lanes (default: every core)")
+    cli.add_skill_option(a, SKILL_DESCRIPTIONS)
     _force(a, "trials.csv, summary.md and summary.json")
 
     f = sub.add_parser("figures", help="README pictures: predictions drawn, randomization gallery")
@@ -138,7 +157,7 @@ def _render(args) -> str:
         try:
             sizes.append(float(s))
         except ValueError:
-            raise UsageError(f"--sizes must be numbers of mm (of 25, 50, 60), got {s!r}") from None
+            raise UsageError(f"--sizes must be numbers of mm (10..80), got {s!r}") from None
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
@@ -148,7 +167,7 @@ def _render(args) -> str:
         shapes=_csv(args.shapes),
         sizes_mm=tuple(sizes),
     )
-    prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+    prepare_split(args.out, config, force=args.force, note=_note)
     mujoco_log.send_to(args.out)
     _warn_gl()
     n = render_split(args.out, config, progress=not args.no_progress)
@@ -158,17 +177,17 @@ def _render(args) -> str:
 def _train(args) -> str:
     import dataclasses
 
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import check_trainable, split_config
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
-    cli.check_apart(args.out, {"--data": args.data, "--val": args.val})
-    split_config(args.data)  # a split, before any work
+    outdir.check_apart(args.out, {"--data": args.data, "--val": args.val})
+    check_trainable(split_config(args.data), "--data")  # a split of its classes, before any work
     if args.val is not None:
-        split_config(args.val)
+        check_trainable(split_config(args.val), "--val")
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
-    prepare_out(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+    prepare_out(args.out, config, force=args.force, note=_note)
     loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"
@@ -184,11 +203,11 @@ def _evaluate(args) -> str:
     from mjx_peg.vision.localizer import Localizer
     from mjx_peg.vision.metrics import REPORT_FILES, evaluate_to
 
-    cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
+    outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_config(args.data)
-    cli.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, PROG)
-    cli.prepare_dir(args.out)
+    outdir.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, _note)
+    outdir.prepare_dir(args.out)
     report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
     o = report["overall"]
     yaw = "-" if o["yaw_p99_deg"] is None else f"{o['yaw_p99_deg']:.2f}"
@@ -205,21 +224,24 @@ def _localize(args) -> str:
     from mjx_peg.vision.dataset import read_png
     from mjx_peg.vision.localizer import Localizer
 
+    loc = Localizer.load(args.model)
+    if args.shape is not None:
+        loc.check_shape(args.shape)
     image = read_png(args.image)
     calib = CameraCalibration.load(args.camera)
-    loc = Localizer.load(args.model)
-    return json.dumps(loc.localize(image, calib).to_json(), indent=2)
+    return json.dumps(loc.localize(image, calib, shape=args.shape).to_json(), indent=2)
 
 
 def _act(args) -> str:
     from mjx_peg.vision.forward import SIZES_MM
+    from mjx_peg.vision.localizer import Localizer
 
     shapes = _csv(args.shapes)
-    for s in shapes:
-        if s not in ("circle", "square", "triangle"):
-            raise UsageError(f"unknown shape {s!r}: choose from circle, square, triangle")
     if not shapes or len(set(shapes)) != len(shapes):
-        raise UsageError("--shapes must name distinct shapes of circle, square, triangle")
+        raise UsageError("--shapes must name distinct shapes")
+    loc = Localizer.load(args.model)
+    for s in shapes:
+        loc.check_shape(s, "--shapes")
     if args.size not in SIZES_MM:
         raise UsageError(
             f"--size must be a size the localizer knows (25, 50, 60 mm), got {args.size:g}"
@@ -227,17 +249,15 @@ def _act(args) -> str:
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     args.policy = resolve_policy(args.policy)
-    cli.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
+    outdir.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
-    from mjx_peg.vision.localizer import Localizer
     from mjx_peg.world import mujoco_log
 
-    loc = Localizer.load(args.model)
-    cli.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, PROG)
-    cli.prepare_dir(args.out)
+    outdir.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, _note)
+    outdir.prepare_dir(args.out)
     mujoco_log.send_to(args.out)
     _warn_gl()
-    options = {"workers": args.workers} if args.workers else {}
+    options = {"threads": args.threads} if args.threads else {}
     s = run_act(
         loc,
         args.policy,
@@ -264,11 +284,11 @@ def _figures(args) -> str:
     from mjx_peg.vision.figures import FIGURES, write_figures
     from mjx_peg.vision.localizer import Localizer
 
-    cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
+    outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_config(args.data)
-    cli.refuse_or_move([args.out / name for name in FIGURES], args.force, PROG)
-    cli.prepare_dir(args.out)
+    outdir.refuse_or_move([args.out / name for name in FIGURES], args.force, _note)
+    outdir.prepare_dir(args.out)
     _warn_gl()
     paths = write_figures(loc, args.data, args.out)
     return "wrote " + ", ".join(str(p) for p in paths)

@@ -1,13 +1,15 @@
 """Domain randomization for the bird's-eye camera: what a real camera and workshop would vary.
 
-The scene is the task's own (`scene.build_mjcf`: UR5e, table, board with its box-built hole, peg)
+The scene is the task's own (`mjcf.build_mjcf`: UR5e, table, board with its box-built hole, peg)
 with extras that only the camera sees: table and board materials with textures, a second
 (shadow-casting) light, and distractor bodies (no contacts). Per image, `sample_view` draws a
 view (a plain dict, stored in the image's JSON label) and `apply_view` writes it into the model.
 The training range (condition `nominal`):
 
 - board: hole centre uniform in area over the task's workspace sector, yaw uniform in
-  [0, 360) deg, shape circle / square / triangle, size 25 / 50 / 60 mm;
+  [0, 360) deg, shape circle / square / triangle, size 25 / 50 / 60 mm (the localizer's classes;
+  a split may render any of constants.SHAPES at any size in constants.SIZE_RANGE, at the shape's
+  paper fit);
 - table: 4 textures (checker, speckle, gradient, plain) x colour (HSV) x scale (texrepeat
   2-14), glossy (reflectance up to 0.05) 30 % of the time;
 - board look: 3 textures (plain, speckle, gradient) x colour (HSV) x specular / shininess;
@@ -47,9 +49,8 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjx_peg.vision.camera import CameraCalibration  # noqa: E402
-from mjx_peg.vision.forward import SIZES_MM  # noqa: E402
-from mjx_peg.world import constants, scene  # noqa: E402
-from mjx_peg.world.constants import SHAPES  # noqa: E402
+from mjx_peg.vision.forward import SHAPE_CLASSES, SIZES_MM  # noqa: E402
+from mjx_peg.world import constants, mjcf, scene  # noqa: E402
 from mjx_peg.world.task import TaskConfig  # noqa: E402
 
 CONDITIONS = ("nominal", "dark", "camera-off")
@@ -67,17 +68,13 @@ CAMERA_OFF_M, CAMERA_OFF_DEG = 0.010, 1.0  # the out-of-range `camera-off` condi
 DARK_FACTOR = 0.3  # the `dark` condition's light scale
 
 
-def _sub(parent: ET.Element, tag: str, **attrs) -> ET.Element:
-    return ET.SubElement(parent, tag, {k: str(v) for k, v in attrs.items()})
-
-
 def build_vision_mjcf(shape: str, size: float) -> str:
-    """The task scene (`scene.build_mjcf`) plus camera-only extras: materials, a key light and
+    """The task scene (`mjcf.build_mjcf`) plus camera-only extras: materials, a key light and
     distractor bodies (contype = conaffinity = 0, parked under the table)."""
-    root = ET.fromstring(scene.build_mjcf(shape, size))
+    root = ET.fromstring(mjcf.build_mjcf(shape, size))
     asset = root.find("asset")
     tex = dict(type="2d", width=512, height=512)
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_checker",
@@ -88,7 +85,7 @@ def build_vision_mjcf(shape: str, size: float) -> str:
         markrgb="0.5 0.5 0.5",
         **tex,
     )
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_speckle",
@@ -99,7 +96,7 @@ def build_vision_mjcf(shape: str, size: float) -> str:
         markrgb="0.55 0.55 0.55",
         **tex,
     )
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_gradient",
@@ -110,12 +107,12 @@ def build_vision_mjcf(shape: str, size: float) -> str:
     )
     for name in TABLE_TEXTURES:
         extra = {} if name == "plain" else {"texture": f"vt_{name}"}
-        _sub(asset, "material", name=f"vm_table_{name}", texrepeat="8 8", **extra)
+        mjcf.element(asset, "material", name=f"vm_table_{name}", texrepeat="8 8", **extra)
     for name in BOARD_TEXTURES:
         extra = {} if name == "plain" else {"texture": f"vt_{name}", "texuniform": "true"}
-        _sub(asset, "material", name=f"vm_board_{name}", texrepeat="6 6", **extra)
+        mjcf.element(asset, "material", name=f"vm_board_{name}", texrepeat="6 6", **extra)
     world = root.find("worldbody")
-    _sub(
+    mjcf.element(
         world,
         "light",
         name="key",
@@ -128,9 +125,9 @@ def build_vision_mjcf(shape: str, size: float) -> str:
     )
     for kind, count in N_DISTRACTORS.items():
         for k in range(count):
-            body = _sub(world, "body", name=f"vd_{kind}{k}", pos=f"0 0 {PARK_Z}")
+            body = mjcf.element(world, "body", name=f"vd_{kind}{k}", pos=f"0 0 {PARK_Z}")
             gtype = "box" if kind == "slab" else kind
-            _sub(
+            mjcf.element(
                 body,
                 "geom",
                 name=f"vd_{kind}{k}",
@@ -187,7 +184,7 @@ def nominal_camera(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, float
 
 def sample_board(
     rng: np.random.Generator,
-    shapes: tuple[str, ...] = SHAPES,
+    shapes: tuple[str, ...] = SHAPE_CLASSES,
     sizes_mm: tuple[float, ...] = SIZES_MM,
     task: TaskConfig | None = None,
 ) -> dict:
@@ -264,7 +261,7 @@ def sample_view(
     distractors = []
     kinds = [(kind, k) for kind, n in N_DISTRACTORS.items() for k in range(n)]
     count = int(rng.integers(0, 9))
-    keep_out = scene.board_half_width(board["shape"], board["size"]) * math.sqrt(2.0) + 0.01
+    keep_out = mjcf.board_half_width(board["shape"], board["size"]) * math.sqrt(2.0) + 0.01
     for i in rng.permutation(len(kinds))[:count]:
         kind, k = kinds[i]
         if kind == "slab":

@@ -48,7 +48,7 @@ def test_the_compiled_period_is_the_numpy_period():
             raise _Captured
 
     with pytest.raises(_Captured):
-        cpu_engine.run_trials(specs, params, CONFIG, threads=1, observer=observe, compiled=False)
+        cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, observer=observe, compiled=False)
     n, size = got["n"], compiled.slot_count(got["n"])
     programs = compiled.programs(CONFIG)
     pad = np.minimum(np.arange(size), n - 1)
@@ -90,15 +90,15 @@ def test_compiled_results_do_not_depend_on_lanes_or_slots():
     """One lane or two, 3 slots or 40 (32 and 64 compiled slots): bit-identical results, and the
     same outcomes as the NumPy pass on these short trials."""
     specs, params = _specs(12, seed=6), _params(12)
-    one = cpu_engine.run_trials(specs, params, CONFIG, threads=1, compiled=True)
-    two = cpu_engine.run_trials(specs, params, CONFIG, threads=2, slots_per_thread=3,
+    one = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, compiled=True)
+    two = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=2, slots_per_thread=3,
                                 compiled=True)  # fmt: skip
-    wide = cpu_engine.run_trials(specs, params, CONFIG, threads=1, slots_per_thread=40,
+    wide = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, slots_per_thread=40,
                                  compiled=True)  # fmt: skip
     for other in (two, wide):
         for name, value in one.to_arrays().items():
             np.testing.assert_array_equal(getattr(other, name), value, err_msg=name)
-    reference = cpu_engine.run_trials(specs, params, CONFIG, threads=1, compiled=False)
+    reference = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, compiled=False)
     assert 0 < reference.success.sum() < 12, reference.summary()
     np.testing.assert_array_equal(one.success, reference.success)
     np.testing.assert_allclose(one.time_s, reference.time_s, atol=0.05)
@@ -116,7 +116,7 @@ def test_a_compiled_lane_leaves_jax_in_float32_and_serves_observers():
         def observe(lane, rows, wrench, flag=flag):
             seen[flag].append((int(lane.step[rows[0]]), lane.tip_pos[rows[0]].copy()))
 
-        cpu_engine.run_trials(specs.take([0]), params, CONFIG, threads=1, observer=observe,
+        cpu_engine.run_on_cpu(specs.take([0]), params, CONFIG, threads=1, observer=observe,
                               compiled=flag)  # fmt: skip
     assert not jax.config.jax_enable_x64
     assert jax.numpy.zeros(1).dtype == np.float32
@@ -132,10 +132,10 @@ def test_the_pass_is_named_by_the_call_or_the_environment(monkeypatch):
     from mjx_peg.errors import UsageError
 
     with pytest.raises(UsageError, match="compiled must be True or False"):
-        cpu_engine.run_trials(_specs(1, 0), _params(1), CONFIG, compiled="yes")
+        cpu_engine.run_on_cpu(_specs(1, 0), _params(1), CONFIG, compiled="yes")
     monkeypatch.setenv(lanes.PASS_VARIABLE, "fast")
     with pytest.raises(UsageError, match="MJX_PEG_CONTROL_PASS must be one of compiled, numpy"):
-        cpu_engine.run_trials(_specs(1, 0), _params(1), CONFIG)
+        cpu_engine.run_on_cpu(_specs(1, 0), _params(1), CONFIG)
     monkeypatch.delenv(lanes.PASS_VARIABLE)
     assert lanes.default_compiled()
     monkeypatch.setenv(lanes.PASS_VARIABLE, "numpy")

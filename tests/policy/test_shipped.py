@@ -10,6 +10,7 @@ import pytest
 from mjx_peg.errors import UsageError
 from mjx_peg.policy import shipped
 from mjx_peg.policy.export import load_policy, save_policy
+from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig, constants_record
 
 
 @pytest.fixture
@@ -39,23 +40,45 @@ def test_names_resolve_and_paths_win(shelf, tmp_path, monkeypatch):
 def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     policy = load_policy("mini")
-    assert policy.skill == "search"
+    assert policy.skill == policy.trained_skill == NamedSkill("search", SkillConfig(centre_gain=1))
     by_path = load_policy(shelf / "mini")
     obs = np.zeros((3, 8))
     np.testing.assert_array_equal(policy.vectors_for(obs), by_path.vectors_for(obs))
 
 
+def test_a_manifest_whose_skill_does_not_read_is_one_policy_error(shelf):
+    from mjx_peg.policy.export import PolicyError
+
+    path = shelf / "mini" / "manifest.json"
+    good = json.loads(path.read_text())
+    for skill, message in (({"name": "wiggle", "constants": None}, "unknown skill 'wiggle'"),
+                           ({"name": "spiral", "constants": {"spiral_speed": -1}}, "spiral_speed"),
+                           ({"constants": None}, "'name'")):  # fmt: skip
+        path.write_text(json.dumps({**good, "skill": skill}))
+        with pytest.raises(PolicyError, match="its skill is not readable") as error:
+            load_policy(shelf / "mini")
+        assert message in str(error.value) and len(str(error.value).splitlines()) == 1
+
+
 def test_the_shipped_policies_load_and_say_how_they_were_made():
-    """The README's policies are shipped; each loads, runs its own skill, and its provenance
-    names the commit and command that trained it."""
+    """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
+    running by default the shipped skill (`spiral`, the skill their published numbers used;
+    `paper` was trained with an earlier one, `search`, which its config records), every
+    constant in its manifest; its provenance names the commit and command that trained it."""
     names = shipped.shipped_names()
-    assert {"quick", "paper", "transfer"} <= set(names)
+    assert names == ["paper", "quick", "transfer"]
     for name in names:
         policy = load_policy(name)
         vectors = policy.vectors_for(np.zeros((2, 8)))
         assert vectors.shape == (2, 38) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
-        assert policy.skill == json.loads((folder / "config.json").read_text())["skill"]
+        manifest = json.loads((folder / "manifest.json").read_text())
+        spiral = NamedSkill("spiral", SKILLS["spiral"])
+        assert manifest["skill"] == spiral.record() and policy.skill == spiral
+        config = json.loads((folder / "config.json").read_text())
+        trained = "search" if name == "paper" else "spiral"
+        assert policy.trained_skill.name == config["skill"] == trained
+        assert config["skill_constants"] == constants_record(policy.trained_skill.config)
         provenance = json.loads((folder / "provenance.json").read_text())
         assert len(provenance["commit"]) == 40 and "train.py" in provenance["command"]
 
@@ -70,3 +93,42 @@ def test_an_unknown_name_is_one_line_and_exit_2(tmp_path):
     assert run.returncode == 2
     assert len(run.stderr.strip().splitlines()) == 1
     assert "no shipped policy of that name" in run.stderr
+
+
+def _names_observation(specs):
+    """The observation the shipped policies were trained on, written out here (not imported):
+    hole x, y, the yaw at the shape's symmetry, a one-hot of circle, square, triangle, the size."""
+    order = np.array([0.0, 4.0, 3.0])[specs.shape_id]
+    return np.concatenate(
+        [
+            (specs.hole_est_pos - np.array([0.4, 0.0])) / 0.3,
+            np.stack([np.cos(order * specs.hole_est_yaw), np.sin(order * specs.hole_est_yaw)], -1),
+            np.eye(3)[specs.shape_id],
+            ((specs.size - 0.05) / 0.01)[:, None],
+        ],
+        axis=-1,
+    )
+
+
+@pytest.mark.parametrize("name", ["paper", "quick", "transfer"])
+def test_the_shipped_policies_act_exactly_as_they_did(name):
+    """Each reads the names layout (its manifest predates the layouts) and gives, bit for bit,
+    the numbers its network gives for the observation it was trained on; on the robot too."""
+    from mjx_peg.policy import network
+    from mjx_peg.robot.runtime import HoleEstimate, controller_vector
+    from mjx_peg.world.task import TaskConfig, sample_trials
+
+    policy = load_policy(name)
+    assert policy.layout == "names" and "layout" not in policy.manifest["observation"]
+    config = TaskConfig(shapes=("circle", "square", "triangle"), sizes=(0.025, 0.05, 0.06))
+    specs = sample_trials(config, 11, 24)
+
+    def expected(specs):
+        obs = _names_observation(specs)
+        action = network.mean_action(policy.layers, policy.obs_mean, policy.obs_std, obs)
+        return np.asarray(network.controller_vector(action, policy.centre), np.float64)
+
+    assert policy.controller_vectors(specs).tobytes() == expected(specs).tobytes()
+    for i in range(0, len(specs), 5):  # the robot's batch of one
+        robot = controller_vector(policy, HoleEstimate.of_trial(specs, i))
+        assert robot.tobytes() == expected(specs.take([i]))[0].tobytes()
