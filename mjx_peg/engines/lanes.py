@@ -188,12 +188,14 @@ class Lane:
         y0 = start_state(goal_pos[0], goal_rot[0], d.site_xpos[tcp].copy(),
                          d.site_xmat[tcp].reshape(3, 3).copy())  # fmt: skip
         p = self.params
+        search = None if p.search is None else tree_map(lambda v: v[index], p.search)
         skill = make_skill(
             ControllerParams(p.k_t[index], p.k_theta[index], p.compliance[index]),
             goal_pos[0],
             goal_rot[0],
             y0,
             cfg.dmp.tau,
+            search,
         )
         consts = period.make_consts(
             skill,

@@ -198,7 +198,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     coupled = a * state.coupled + (1.0 - a) * wrench
     skill = consts.skill
     aligned = aligned_rotation(control.search, state.aligned, coupled, meas.tcp_pos,
-                               skill.goal_pos, skill.goal_rot, config.timestep)  # fmt: skip
+                               skill.goal_pos, skill.goal_rot, config.timestep,
+                               skill.search)  # fmt: skip
     spiral = spiral_state(control.search, state.spiral, coupled, meas.tcp_pos, skill.goal_pos,
                           skill.goal_rot, config.timestep)  # fmt: skip
     settle = state.settle

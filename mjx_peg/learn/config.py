@@ -19,15 +19,19 @@ import dataclasses
 import json
 import math
 
+import numpy as np
+
 from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.params import N_LEARNED, N_PARAMS
+from mjx_peg.skill.search import LEARNED, skill_config
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
+OBS_STATISTICS = ("running", "context")
 # How the policy's unbounded action becomes the 38 numbers (skill/params.py): "centred" puts
 # action 0 at the baseline with the sensitivity of a range's middle in both directions;
 # "sigmoid" (the first runs' map) centres each number's range instead, and the
@@ -61,7 +65,33 @@ class TrainConfig:
     clipping_epsilon: float = 0.2
     init_noise_std: float = 0.4  # exploration std of the gains and compliance diagonal (action)
     init_noise_std_coupling: float = 0.1  # of the 30 off-diagonal couplings
+    # True: the policy acts in units of those initial stds (its own std starts at 1 for every
+    # number; the env and the export multiply its action by them), so that Adam's steps, which
+    # move every output alike, move each number by the same fraction of its exploration and each
+    # contributes alike to the update's KL; False: the raw action (config.json files without it)
+    normalized_actions: bool = False
     prior: str = "baseline"  # "baseline": start at the hand-tuned skill; "none": Brax's init
+    # "none" only: the policy's mean head's initial kernel times this (Brax's init: 1), so the
+    # first policy is the mid-range controller for every observation rather than a random
+    # function of it
+    head_init_scale: float = 1.0
+    # Adaptive learning rate: after each iteration the rate is divided by 1.5 where the mean
+    # per-number KL of the update passed 2 kl_target and multiplied by 1.5 where it stayed under
+    # kl_target / 2, within [learning_rate_min, learning_rate_max]; 0: a fixed learning_rate
+    kl_target: float = 0.0
+    learning_rate_min: float = 1e-5
+    learning_rate_max: float = 1e-2
+    # "running": Brax's running statistics of the observations, updated with every iteration;
+    # "context": fitted once, before the first trial, to `context_samples` observations drawn
+    # from the task (a contextual bandit's observations do not depend on the policy)
+    obs_statistics: str = "running"
+    context_samples: int = 4096
+    # Every eval_every iterations (0: never) the policy's mean, without exploration, runs
+    # eval_trials held-out trials of the task (drawn once from the seed eval_seed), written to
+    # eval.csv and TensorBoard as eval/...: the learning curve of the policy that is exported
+    eval_every: int = 0
+    eval_trials: int = 128
+    eval_seed: int = 1_000_003
     action_map: str = "centred"  # ACTION_MAPS; config.json files without it were "sigmoid"
     policy_hidden: tuple[int, ...] = (64, 64)
     value_hidden: tuple[int, ...] = (64, 64)
@@ -84,6 +114,12 @@ class TrainConfig:
     # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"; config.json
     # files without it were "paper"
     skill: str = "paper"
+    # The policy outputs the contact search's learnable constants (skill.search.LEARNED: the
+    # spiral's pitch, radius, speed and press, the alignment's rate and depth, the insertion
+    # press's depth and strength, the movement's duration) beside the 38, each in its physical
+    # range (skill.params.SEARCH_RANGES); the skill's own values are the baseline prior's.
+    # False: the 38 alone, the skill's constants fixed (config.json files without it)
+    learn_search: bool = False
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -99,13 +135,19 @@ class TrainConfig:
             object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
         if self.prior not in PRIORS:
             raise UsageError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
+        if self.obs_statistics not in OBS_STATISTICS:
+            raise UsageError(
+                f"unknown observation statistics {self.obs_statistics!r}: choose from "
+                f"{', '.join(OBS_STATISTICS)}"
+            )
         if self.action_map not in ACTION_MAPS:
             raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
         if self.engine not in ENGINES:
             raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
-        for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):
+        for name in ("trials", "num_envs", "num_minibatches", "update_epochs", "context_samples",
+                     "eval_trials"):  # fmt: skip
             value = getattr(self, name)
             if not isinstance(value, int) or value <= 0:
                 flag = "--" + name.replace("_", "-")
@@ -116,10 +158,22 @@ class TrainConfig:
             "init_noise_std",
             "init_noise_std_coupling",
             "clipping_epsilon",
+            "head_init_scale",
+            "learning_rate_min",
+            "learning_rate_max",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"{name} must be a positive number, got {value}")
+        if not (isinstance(self.eval_every, int) and self.eval_every >= 0):
+            raise UsageError(f"--eval-every must be an integer >= 0, got {self.eval_every}")
+        if not (math.isfinite(self.kl_target) and self.kl_target >= 0):
+            raise UsageError(f"kl_target must be >= 0 (0: a fixed rate), got {self.kl_target}")
+        if not self.learning_rate_min <= self.learning_rate <= self.learning_rate_max:
+            raise UsageError(
+                f"learning_rate {self.learning_rate} must lie in [learning_rate_min, "
+                f"learning_rate_max] = [{self.learning_rate_min}, {self.learning_rate_max}]"
+            )
         if not (math.isfinite(self.entropy_cost) and self.entropy_cost >= 0):
             raise UsageError(f"entropy_cost must be >= 0, got {self.entropy_cost}")
         if self.num_envs % self.num_minibatches:
@@ -127,7 +181,14 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        skill_config(self.skill)  # a known skill
+        search = skill_config(self.skill)  # a known skill
+        if self.learn_search and not (
+            search.spiral_speed > 0 and search.align_rate > 0 and search.insert_axial != 1.0
+        ):
+            raise UsageError(
+                f"the skill {self.skill!r} has no spiral, alignment and insertion press whose "
+                "constants a policy could learn"
+            )
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -154,9 +215,25 @@ class TrainConfig:
             search=skill_config(self.skill),
         )
 
+    @property
+    def action_size(self) -> int:
+        """The numbers the policy outputs: 38, or 47 with the search's constants."""
+        return N_LEARNED if self.learn_search else N_PARAMS
+
+    def prior_vector(self):
+        """(38,) or (47,) the hand-tuned start: the baseline's 38 and the skill's constants."""
+        vector = baseline_params()
+        if not self.learn_search:
+            return vector
+        trial = self.trial()
+        values = [getattr(trial.search, name) for name in LEARNED]
+        values[LEARNED.index("movement_s")] = trial.movement.duration
+        return np.concatenate([vector, values])
+
     def map_centre(self):
-        """(38,) physical vector at action 0 of the centred map, or None for the sigmoid map."""
-        return baseline_params() if self.action_map == "centred" else None
+        """(38,) or (47,) physical vector at action 0 of the centred map, or None for the sigmoid
+        map."""
+        return self.prior_vector() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)
@@ -176,9 +253,36 @@ class TrainConfig:
         return json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n"
 
 
+# A start with no hand-tuned number (`--prior none`): Brax's initialization under the sigmoid map
+# (every number mid-range of its physical range), the mean head's kernel shrunk so that the
+# first policy is that controller for every observation, and what learning from there needs
+# (docs/design/learning_from_scratch.md): exploration across the ranges, updates held to a
+# KL, observation statistics of the task's contexts.
+GENERIC_START = {
+    "prior": "none",
+    "action_map": "sigmoid",
+    "head_init_scale": 0.01,
+    "normalized_actions": True,
+    "init_noise_std": 1.0,
+    "kl_target": 0.01,
+    "learning_rate": 3e-3,
+    "obs_statistics": "context",
+}
+HAND_TUNED_START = {"prior": "baseline", "action_map": "centred"}
+
+
+def prior_settings(prior: str) -> dict:
+    """The TrainConfig changes of a start (`--prior`): "baseline", the hand-tuned skill, or
+    "none", GENERIC_START."""
+    if prior not in PRIORS:
+        raise UsageError(f"unknown prior {prior!r}: choose from {', '.join(PRIORS)}")
+    return dict(GENERIC_START if prior == "none" else HAND_TUNED_START)
+
+
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with
 # the spiral: every preset is this one with a budget or a shape changed.
-_PAPER = TrainConfig(preset="paper", linear_mm=8.0, angular_deg=12.0, trials=8192, skill="spiral")
+_PAPER = TrainConfig(preset="paper", linear_mm=8.0, angular_deg=12.0, trials=8192, skill="spiral",
+                     learn_search=True)  # fmt: skip
 
 PRESETS: dict[str, TrainConfig] = {
     # 3,584 trials (14 iterations): python train.py in under 10 minutes on 2 cores (BENCHMARKS.md,

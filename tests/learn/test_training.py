@@ -143,7 +143,13 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     shipped = load_policy("paper")
     obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
     action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
-    assert np.max(np.abs(action - shipped.act(obs))) < 1e-5
+    # the shipped policy's 38; the search's constants, which it did not learn, at the prior's
+    assert action.shape == (256, 47) and shipped.act(obs).shape == (256, 38)
+    assert np.max(np.abs(action[:, :38] - shipped.act(obs))) < 1e-5
+    np.testing.assert_allclose(action[:, 38:], 0.0, atol=1e-6)  # the centred map's centre
+    vectors = np.asarray(controller_vector(action, config.map_centre()))
+    np.testing.assert_allclose(vectors[:, 38:], np.broadcast_to(config.prior_vector()[38:],
+                                                                (256, 9)), rtol=1e-5)  # fmt: skip
     norm = state.normalizer_params
     assert int(norm.count.lo) == shipped.manifest["trials"] == 8192
     critic_mean = np.asarray(norm.mean["privileged_state"])
@@ -274,3 +280,95 @@ def test_distributed_two_local_processes(tmp_path):
     assert read_table(out / "metrics.csv")["trials"] == [16.0, 32.0, 48.0]
     assert len(read_table(out / "trials.csv")["trial"]) == 48
     assert load_policy(out).manifest["finished"]
+
+
+def test_a_generic_start_is_the_mid_range_controller_for_every_observation():
+    """--prior none: Brax's initialization, the mean head shrunk: every number mid-range (the
+    sigmoid map's action 0) whatever the input, the search's constants too."""
+    from mjx_peg.learn.config import prior_settings
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.skill.params import controller_from_action, vector_from_controller
+
+    config = PRESETS["paper"].replace(**prior_settings("none"))
+    assert config.action_size == 47 and config.map_centre() is None
+    state = init_state(config, make_networks(config))
+    obs = jnp.asarray(np.random.default_rng(5).normal(size=(64, 8)), jnp.float32)
+    action = np.asarray(deterministic_actions(config, state, obs))
+    assert np.max(np.abs(action)) < 0.05
+    middle = np.asarray(vector_from_controller(controller_from_action(np.zeros(47))))
+    vectors = np.asarray(controller_vector(action, None))
+    np.testing.assert_allclose(vectors[:, :2], np.broadcast_to(middle[:2], (64, 2)), rtol=0.02)
+    assert middle[0] == pytest.approx(100.0) and middle[38] == pytest.approx(0.005)
+
+
+def test_the_learning_rate_follows_the_updates_kl():
+    from mjx_peg.learn.ppo import adapt_learning_rate, learning_rate, make_optimizer
+
+    config = TINY.replace(kl_target=0.01, learning_rate=1e-3)
+    state = make_optimizer(config).init({"w": jnp.zeros(3)})
+    rates = []
+    for kl in (0.05, 0.05, 0.01, 0.001, 0.001):
+        state = adapt_learning_rate(config, state, jnp.asarray(kl))
+        rates.append(float(learning_rate(config, state)))
+    np.testing.assert_allclose(rates, [1e-3 / 1.5, 1e-3 / 2.25, 1e-3 / 2.25, 1e-3 / 1.5, 1e-3],
+                               rtol=1e-6)  # fmt: skip
+    fixed = TINY.replace(kl_target=0.0)
+    state = make_optimizer(fixed).init({"w": jnp.zeros(3)})
+    assert adapt_learning_rate(fixed, state, jnp.asarray(1.0)) is state
+    assert float(learning_rate(fixed, state)) == pytest.approx(fixed.learning_rate)
+
+
+def test_a_run_evaluates_its_mean_on_held_out_trials_and_writes_tensorboard(tmp_path):
+    config = TINY.replace(trials=32, eval_every=1, eval_trials=4, time_limit_s=0.3)
+    train(config, tmp_path / "run", progress=False, tensorboard=True)
+    held = read_table(tmp_path / "run" / "eval.csv")
+    assert held["iteration"] == [1.0, 2.0] and held["trials"] == [16.0, 32.0]
+    assert all(0.0 <= s <= 1.0 for s in held["success_rate"])
+    (events,) = (tmp_path / "run" / "tensorboard").glob("events.out.tfevents.*")
+    from tensorboardX.proto.event_pb2 import Event
+
+    data, tags = events.read_bytes(), {}
+    while data:  # TFRecord framing: length (8 bytes), its CRC (4), the record, its CRC (4)
+        n = int.from_bytes(data[:8], "little")
+        event = Event.FromString(data[12 : 12 + n])
+        for value in event.summary.value:
+            tags.setdefault(value.tag, []).append((event.step, value.simple_value))
+        data = data[16 + n :]
+    assert [step for step, _ in tags["training/success_rate"]] == [16, 32]
+    assert [step for step, _ in tags["eval/success_rate"]] == [16, 32]
+    assert tags["eval/success_rate"][-1][1] == pytest.approx(held["success_rate"][-1], abs=1e-4)
+
+
+@pytest.mark.slow
+def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path):
+    args = ["--trials", "16", "--num-envs", "8", "--time-limit", "0.3", "--no-progress",
+            "--processes", "1"]  # fmt: skip
+    done = _run(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
+    assert done.returncode == 0, done.stderr
+    for seed in (3, 4):
+        config = json.loads((tmp_path / "set" / f"seed-{seed}" / "config.json").read_text())
+        assert config["seed"] == seed
+    rows = read_table(tmp_path / "set" / "seeds.csv")
+    assert rows["trials"] == [8.0, 16.0] and rows["success_rate_seeds"] == [2.0, 2.0]
+    assert (tmp_path / "set" / "seeds.png").stat().st_size > 10_000
+    assert "2 seeds (3, 4)" in done.stdout
+    again = _run(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
+    assert again.returncode == 0 and again.stderr.count("is finished: skipped") == 2
+    bad = _run(["--seeds", "3,3", "--out", str(tmp_path / "x"), *args])
+    assert bad.returncode == 2 and "repeats a seed" in bad.stderr
+
+
+def test_normalized_actions_export_the_action_the_map_takes(tmp_path):
+    """Under normalized_actions the network acts in units of the exploration scale; the export
+    folds the scale into its head, so the NumPy policy's action is the JAX policy's scaled one,
+    and a run started from that export acts as it does."""
+    from mjx_peg.learn.config import prior_settings
+    from mjx_peg.learn.ppo import action_scale
+
+    config = TINY.replace(**prior_settings("none"), trials=16)
+    assert config.normalized_actions and action_scale(config)[0] == config.init_noise_std
+    train(config, tmp_path / "run", progress=False)
+    _, state = load_state(tmp_path / "run")
+    obs = np.random.default_rng(4).normal(size=(64, observation.OBS_SIZE)).astype(np.float32)
+    jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
+    np.testing.assert_allclose(load_policy(tmp_path / "run").act(obs), jax_action, atol=1e-5)
