@@ -9,7 +9,7 @@ from mjx_peg import cli
 from mjx_peg.engines import ENGINES, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILLS, skill_config
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--seed", type=cli.SEED, default=1, help="default 1")
     cli.add_grasp_model_option(p, constants.GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), "paper")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS, "paper")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     args = p.parse_args(argv)
     shapes = [s.strip() for s in args.shapes.split(",") if s.strip()]

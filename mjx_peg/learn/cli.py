@@ -20,11 +20,11 @@ import argparse
 import os
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS, PRIORS, prior_settings
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
@@ -100,12 +100,12 @@ def parser() -> argparse.ArgumentParser:
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
     p.add_argument(
-        "--workers",
-        type=cli.WORKERS,
+        "--threads",
+        type=cli.THREADS,
         help="CPU engine threads: per worker process (default 1), or of this process with "
         "--processes 0 (default: all cores)",
     )
-    cli.add_processes_option(p, "--workers")
+    cli.add_processes_option(p, "--threads")
     cli.add_ray_option(p)
     p.add_argument(
         "--action-map",
@@ -114,7 +114,7 @@ def parser() -> argparse.ArgumentParser:
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
-    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (spiral)")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -147,8 +147,6 @@ def resolve_config(args):
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.fixed_skill:
-        config = config.replace(learn_search=False)
-    elif args.skill == "paper":  # the paper's skill has no constants of its own to learn
         config = config.replace(learn_search=False)
     if args.prior is not None:
         if args.prior == "none" and args.action_map == "centred":
@@ -206,15 +204,15 @@ def main(argv=None) -> int:
 
     engine = resolve_engine(config.engine)
     if args.ray is not None:
-        options = cli.ray_options(args, engine, ("--workers",))
+        options = cli.ray_options(args, engine, ("--threads",))
     else:
         options = {
-            "workers": args.workers,
+            "threads": args.threads,
             "processes": cli.resolve_processes(args.processes, engine),
         }
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
-        cli.check_apart(out, {"--init-from": config.init_from})
+        outdir.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
         join_distributed()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted

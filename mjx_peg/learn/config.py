@@ -27,7 +27,7 @@ from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import N_LEARNED, N_PARAMS
-from mjx_peg.skill.search import LEARNED, skill_config
+from mjx_peg.skill.search import LEARNED, SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -41,18 +41,19 @@ ACTION_MAPS = ("centred", "sigmoid")
 
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
-    """Everything that defines a training run (written to RUN_DIR/config.json)."""
+    """Everything that defines a training run (written to RUN_DIR/config.json); the defaults are
+    the default preset, `quick`."""
 
     preset: str = "quick"
     shapes: tuple[str, ...] = ("circle", "square")
     size_mm: tuple[float, ...] = (50.0,)
-    linear_mm: float = 4.0  # +- localization x, y and grasp z error range
-    angular_deg: float = 6.0  # +- localization yaw and grasp tilt range
+    linear_mm: float = 8.0  # +- localization x, y and grasp z error range (the paper's)
+    angular_deg: float = 12.0  # +- localization yaw and grasp tilt range (the paper's)
     # Per training trial. Under credible contact (a filtered, delayed sensor, compliance damping,
     # a 2 s approach) the baseline inserts in 14.7 s at the median (500 trials, 60 s): the 3-5 s
     # limits used before left almost every trial a failure and nothing to learn from.
     time_limit_s: float = 20.0
-    trials: int = 12288  # budget, rounded up to whole iterations
+    trials: int = 3584  # budget, rounded up to whole iterations (14 of 256)
     num_envs: int = 256  # trials per iteration (split across devices)
     # One full-batch gradient step per epoch: a 38-dim contextual bandit with a noisy binary
     # outcome; minibatches of 32-64 trials made each iteration chase noise (KL 0.1-0.2 per
@@ -111,15 +112,19 @@ class TrainConfig:
     # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
     # paper's); config.json files without it were "flange" (the peg in the gripper)
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"; config.json
-    # files without it were "paper"
-    skill: str = "paper"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours;
+    # config.json files without it were "paper" (file_versions)
+    skill: str = "spiral"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one.
+    skill_constants: SkillConfig | None = None
     # The policy outputs the contact search's learnable constants (skill.search.LEARNED: the
     # spiral's pitch, radius, speed and press, the alignment's rate and depth, the insertion
     # press's depth and strength, the movement's duration) beside the 38, each in its physical
     # range (skill.params.SEARCH_RANGES); the skill's own values are the baseline prior's.
-    # False: the 38 alone, the skill's constants fixed (config.json files without it)
-    learn_search: bool = False
+    # where the skill has them (the paper's has none). False: the 38 alone, the skill's constants
+    # fixed (config.json files without it)
+    learn_search: bool = True
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -181,14 +186,8 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        search = skill_config(self.skill)  # a known skill
-        if self.learn_search and not (
-            search.spiral_speed > 0 and search.align_rate > 0 and search.insert_axial != 1.0
-        ):
-            raise UsageError(
-                f"the skill {self.skill!r} has no spiral, alignment and insertion press whose "
-                "constants a policy could learn"
-            )
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -212,18 +211,27 @@ class TrainConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
+        )
+
+    @property
+    def learns_search(self) -> bool:
+        """The policy learns the search's constants: asked to, and the skill has the spiral,
+        the alignment and the insertion press they set (the paper's skill has none)."""
+        search = self.skill_constants
+        return self.learn_search and (
+            search.spiral_speed > 0 and search.align_rate > 0 and search.insert_axial != 1.0
         )
 
     @property
     def action_size(self) -> int:
         """The numbers the policy outputs: 38, or 47 with the search's constants."""
-        return N_LEARNED if self.learn_search else N_PARAMS
+        return N_LEARNED if self.learns_search else N_PARAMS
 
     def prior_vector(self):
         """(38,) or (47,) the hand-tuned start: the baseline's 38 and the skill's constants."""
         vector = baseline_params()
-        if not self.learn_search:
+        if not self.learns_search:
             return vector
         trial = self.trial()
         values = [getattr(trial.search, name) for name in LEARNED]
@@ -236,10 +244,16 @@ class TrainConfig:
         return self.prior_vector() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
+        """A copy with `changes`; another skill comes with its own constants unless given."""
+        if "skill" in changes and "skill_constants" not in changes:
+            changes["skill_constants"] = None
         return dataclasses.replace(self, **changes)
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        return {
+            **dataclasses.asdict(self),
+            "skill_constants": constants_record(self.skill_constants),
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> TrainConfig:
@@ -280,15 +294,13 @@ def prior_settings(prior: str) -> dict:
 
 
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with
-# the spiral: every preset is this one with a budget or a shape changed.
-_PAPER = TrainConfig(preset="paper", linear_mm=8.0, angular_deg=12.0, trials=8192, skill="spiral",
-                     learn_search=True)  # fmt: skip
+# the spiral: every preset is the default one with a budget or a shape changed.
+_PAPER = TrainConfig(preset="paper", trials=8192)
 
 PRESETS: dict[str, TrainConfig] = {
-    # 3,584 trials (14 iterations): python train.py in under 10 minutes on 2 cores (BENCHMARKS.md,
-    # "Training"). At the paper's error ranges: at +-4 mm / +-6 deg the starting controller
-    # already inserts 97.4 % and leaves too few failures to learn from (docs/guide/training.md)
-    "quick": _PAPER.replace(preset="quick", trials=3584),
+    # 3,584 trials at the paper's error ranges: python train.py on 2 cores in minutes
+    # (docs/design/training_presets.md)
+    "quick": TrainConfig(),
     "paper": _PAPER,
     "transfer": _PAPER.replace(
         preset="transfer",

@@ -17,7 +17,7 @@ import io
 import json
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import errors, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
@@ -99,7 +99,7 @@ class RunDir:
         directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:
         it is moved aside); UsageError (one line) for everything else."""
         if init_from is not None:
-            cli.check_apart(self.path, {"--init-from": init_from})
+            outdir.check_apart(self.path, {"--init-from": init_from})
         plan = self.out.plan(config.to_json(), force)
         if plan == "resume" and self.is_finished():
             raise UsageError(
@@ -149,12 +149,12 @@ class RunDir:
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
             except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
                 raise UsageError(
-                    f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
+                    f"{path} is corrupt ({type(e).__name__}: {errors.message(e)}); move the run "
                     "aside (--force) to start over"
                 ) from None
             text = io.StringIO(newline="")
             csv.writer(text).writerows([header] + kept)
-            cli.write_atomic(path, text.getvalue())
+            outdir.write_atomic(path, text.getvalue())
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
         with open(self.trials_path, "a", newline="") as f:

@@ -19,7 +19,7 @@ import jax.experimental.multihost_utils
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import checkpoints, ppo
@@ -145,7 +145,7 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
 def _draw_curve(run: RunDir, config: TrainConfig) -> None:
     """Redraw training_curve.png from the run's tables (every iteration: a curve to watch)."""
     title = f"{config.preset}: {run.path.name}"
-    cli.write_atomic(
+    outdir.write_atomic(
         run.curve_path,
         lambda p: plot_training_curve(run.trials_path, p, title, run.metrics_path, run.eval_path),
     )

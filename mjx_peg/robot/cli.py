@@ -10,8 +10,9 @@ command rate must divide the 500 Hz physics (500, 250, 166.7, 125, 100, ... Hz);
 between commands. The default is 500 Hz, the rate at which a UR e-Series controller (the UR5e)
 exchanges RTDE data; the paper sent effort commands at 125 Hz, and there the skill, whose approach
 was tuned at 500 Hz, protective-stops at touchdown in most trials (README "On an arm"). Writes
-`runs.csv` under --out, one row per trial as it ends (a crash keeps the finished ones); an earlier
-runs.csv is replaced only with --force, which moves it aside.
+`runs.csv` under --out, one row per trial as it ends (a crash keeps the finished ones), and
+`skill.json`, the skill the trials ran (its name and every constant); an earlier runs.csv is
+replaced only with --force, which moves it aside.
 """
 
 from __future__ import annotations
@@ -25,14 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import load_policy, policy_skill
+from mjx_peg.outdir import write_json
+from mjx_peg.policy.export import choose_skill, load_policy
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.skill.search import SKILLS, skill_config
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -44,6 +46,7 @@ PHYSICS_HZ = 1.0 / constants.TIMESTEP
 COLUMNS = ("trial", "success", "time_s", "commands", "stopped", "protective_stop", "settled",
            "peak_force_n", "chatter_n")  # fmt: skip
 RESULTS = "runs.csv"
+SKILL_FILE = "skill.json"  # the skill the runs ran: {"name", "constants"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS)
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
@@ -192,19 +195,20 @@ def main(argv=None) -> int:
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
     # The output location, before any trial: never the policy, no earlier result replaced
     # without --force (moved aside then), writable; then one row per trial as it ends.
-    cli.check_apart(args.out, {"--policy": args.policy})
+    outdir.check_apart(args.out, {"--policy": args.policy})
     results = args.out / RESULTS
     if _has_rows(results) or results.is_symlink():
-        cli.refuse_or_move([results], args.force, PROG)
-    cli.prepare_dir(args.out)
+        outdir.refuse_or_move([results], args.force, lambda text: cli.note(PROG, text))
+    outdir.prepare_dir(args.out)
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(args.out)
     specs = sample_trials(task, args.seed, args.trials)
     holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [controller_vector(policy, hole) for hole in holes]
-    search = skill_config(args.skill or policy_skill(policy))
-    config = TrialConfig(time_limit_s=args.time_limit, search=search)
+    skill = choose_skill(args.skill, policy)
+    write_json(args.out / SKILL_FILE, skill.record())
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     rows, start = [], time.perf_counter()
     bar = None
     if not args.no_progress:
