@@ -102,7 +102,8 @@ class SkillRuntime:
     def __init__(self, vector, hole: HoleEstimate, config: TrialConfig | None = None):
         self.config = cfg = config or TrialConfig()
         p = as_controller_params(vector, 1)
-        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
+        # the search's learned constants, where the vector has them, stay (1,) arrays
+        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0], p.search)
         self.hole = hole
         self.basis = fitted_basis(cfg.movement)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
@@ -123,7 +124,8 @@ class SkillRuntime:
         cfg = self.config
         tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
-        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau)
+        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau,
+                           self.params.search)  # fmt: skip
         # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
         # the software filter only, its pole for the command's period.
         ft = sensor.filter_params(cfg.sensor, cfg.timestep, np.zeros(1, np.uint32),
