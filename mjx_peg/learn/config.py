@@ -71,6 +71,13 @@ class TrainConfig:
     # move every output alike, move each number by the same fraction of its exploration and each
     # contributes alike to the update's KL; False: the raw action (config.json files without it)
     normalized_actions: bool = False
+    # Under normalized_actions: the policy's first two numbers are the stiffnesses' common level
+    # and their ratio, k_t at level + ratio and k_theta at level - ratio (the sigmoid map's
+    # actions), explored with stds init_noise_std_level and init_noise_std; inserting needs both
+    # stiff or both soft (a stiff arm on a soft wrist protective-stops), which independent
+    # exploration of the two finds only in the corner of both tails. False: k_t and k_theta
+    joint_stiffness: bool = False
+    init_noise_std_level: float = 1.5
     prior: str = "baseline"  # "baseline": start at the hand-tuned skill; "none": Brax's init
     # "none" only: the policy's mean head's initial kernel times this (Brax's init: 1), so the
     # first policy is the mid-range controller for every observation rather than a random
@@ -164,12 +171,15 @@ class TrainConfig:
             "init_noise_std_coupling",
             "clipping_epsilon",
             "head_init_scale",
+            "init_noise_std_level",
             "learning_rate_min",
             "learning_rate_max",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"{name} must be a positive number, got {value}")
+        if self.joint_stiffness and not self.normalized_actions:
+            raise UsageError("joint_stiffness needs normalized_actions")
         if not (isinstance(self.eval_every, int) and self.eval_every >= 0):
             raise UsageError(f"--eval-every must be an integer >= 0, got {self.eval_every}")
         if not (math.isfinite(self.kl_target) and self.kl_target >= 0):
@@ -277,6 +287,7 @@ GENERIC_START = {
     "action_map": "sigmoid",
     "head_init_scale": 0.01,
     "normalized_actions": True,
+    "joint_stiffness": True,
     "init_noise_std": 1.0,
     "kl_target": 0.01,
     "learning_rate": 3e-3,

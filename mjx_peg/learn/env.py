@@ -69,7 +69,7 @@ class InsertionEnv(Env):
         engine_options: dict | None = None,
         action_centre=None,
         action_size: int = N_PARAMS,
-        action_scale=None,
+        action_transform=None,
     ):
         self.task = task or TaskConfig()
         self.trial = trial or TrialConfig(time_limit_s=self.task.time_limit_s)
@@ -83,8 +83,10 @@ class InsertionEnv(Env):
             raise ValueError(f"a centre of {self.action_centre.size} numbers, actions of "
                              f"{action_size}")  # fmt: skip
         self._action_size = action_size
-        # what the network's action is multiplied by before the map (learn.ppo.action_scale)
-        self.action_scale = None if action_scale is None else np.asarray(action_scale, np.float32)
+        # (A, A): the map's action is the network's times it (learn.ppo.action_transform)
+        self.action_transform = (
+            None if action_transform is None else np.asarray(action_transform, np.float32)
+        )
         self._last_specs: tuple[bytes, TrialSpec] | None = None  # reset's draw, reused by step
 
     def _specs(self, seeds: np.ndarray) -> TrialSpec:
@@ -155,8 +157,8 @@ class InsertionEnv(Env):
         )
 
     def step(self, state: State, action: jax.Array) -> State:
-        if self.action_scale is not None:
-            action = action * self.action_scale
+        if self.action_transform is not None:
+            action = action @ self.action_transform
         vector = network.controller_vector(action, self.action_centre)
         scalar = jax.ShapeDtypeStruct((), jnp.float32)
         outcome = jax.pure_callback(

@@ -161,12 +161,29 @@ def exploration_scale(config: TrainConfig) -> np.ndarray:
     return np.asarray(std, np.float32)
 
 
-def action_scale(config: TrainConfig) -> np.ndarray:
-    """(38,) or (47,) what the network's action is multiplied by before the map: the exploration
-    scale under `normalized_actions`, else 1."""
-    if config.normalized_actions:
-        return exploration_scale(config)
-    return np.ones(config.action_size, np.float32)
+def action_transform(config: TrainConfig) -> np.ndarray:
+    """(A, A) M: the map's action is the network's times M (a row vector times M). Under
+    `normalized_actions` the diagonal of exploration scales, and with `joint_stiffness` its
+    first two rows mix: k_t's action = s_l level + s_r ratio, k_theta's = s_l level - s_r ratio;
+    else the identity. Linear, so the export folds it into the network's head."""
+    size = config.action_size
+    if not config.normalized_actions:
+        return np.eye(size, dtype=np.float32)
+    m = np.diag(exploration_scale(config)).astype(np.float32)
+    if config.joint_stiffness:
+        s_l, s_r = config.init_noise_std_level, config.init_noise_std
+        m[0, :2], m[1, :2] = (s_l, s_l), (s_r, -s_r)
+    return m
+
+
+def to_map_action(config: TrainConfig, raw):
+    """(..., A) the map's action of the network's (..., A) `raw` (`action_transform`)."""
+    return raw @ action_transform(config)
+
+
+def from_map_action(config: TrainConfig, action):
+    """(..., A) the network's action whose map action is `action` (the inverse)."""
+    return action @ np.linalg.inv(action_transform(config)).astype(np.float32)
 
 
 def initial_log_std(config: TrainConfig) -> jax.Array:
@@ -179,7 +196,9 @@ def initial_log_std(config: TrainConfig) -> jax.Array:
     and (0.3, 0.1) costs nothing (54 %). Random couplings mostly make the peg wander; a trial
     whose outcome is decided by that noise says little about the mean.
     """
-    return jnp.log(jnp.asarray(exploration_scale(config) / action_scale(config)))
+    if config.normalized_actions:  # the network acts in units of the exploration
+        return jnp.zeros(config.action_size, jnp.float32)
+    return jnp.log(jnp.asarray(exploration_scale(config)))
 
 
 def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> TrainingState:
@@ -200,7 +219,7 @@ def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> Train
     if config.prior == "baseline":
         head = {
             "kernel": head["kernel"] * PRIOR_KERNEL_SCALE,
-            "bias": jnp.asarray(prior_action(config) / action_scale(config)),
+            "bias": jnp.asarray(from_map_action(config, prior_action(config))),
         }
     else:
         head = {**head, "kernel": head["kernel"] * config.head_init_scale}
@@ -331,8 +350,8 @@ def policy_layers(config: TrainConfig, params: ppo_losses.PPONetworkParams) -> l
     layers = [
         (hidden[f"hidden_{i}"]["kernel"], hidden[f"hidden_{i}"]["bias"]) for i in range(len(hidden))
     ]
-    scale = action_scale(config)
-    layers.append((tree["Dense_0"]["kernel"] * scale, tree["Dense_0"]["bias"] * scale))
+    m = action_transform(config)
+    layers.append((tree["Dense_0"]["kernel"] @ m, tree["Dense_0"]["bias"] @ m))
     return layers
 
 
@@ -348,4 +367,4 @@ def deterministic_actions(config: TrainConfig, state: TrainingState, obs: jax.Ar
     policy = ppo_networks.make_inference_fn(networks)(
         (state.normalizer_params, state.params.policy, state.params.value), deterministic=True
     )
-    return policy(obs, jax.random.PRNGKey(0))[0] * action_scale(config)
+    return to_map_action(config, policy(obs, jax.random.PRNGKey(0))[0])

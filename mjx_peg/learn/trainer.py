@@ -98,20 +98,19 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
         raise UsageError(f"--init-from {source.path} holds no checkpoint, and {e}") from None
     *hidden, head = [{"kernel": jnp.asarray(k), "bias": jnp.asarray(b)} for k, b in policy.layers]
     width = head["bias"].shape[0]
-    scale = ppo.action_scale(config)[:width]  # the exported head outputs the map's action
-    head = {"kernel": head["kernel"] / scale, "bias": head["bias"] / scale}
     if width < config.action_size:  # a policy of the 38 alone: its search starts at the prior
         extra = config.action_size - width
-        prior = ppo.prior_action(config) / ppo.action_scale(config)
         head = {
             "kernel": jnp.concatenate([head["kernel"], jnp.zeros((len(head["kernel"]), extra))], 1),
-            "bias": jnp.concatenate([head["bias"], jnp.asarray(prior[width:])]),
+            "bias": jnp.concatenate([head["bias"], jnp.asarray(ppo.prior_action(config)[width:])]),
         }
     elif width > config.action_size:
         raise UsageError(
             f"--init-from {source.path} outputs {width} numbers, this run learns "
             f"{config.action_size}: train with the search's constants learned"
         )
+    # the export outputs the map's action; this run's network acts in its own units
+    head = {k: ppo.from_map_action(config, np.asarray(v)) for k, v in head.items()}
     tree = {
         **template.params.policy["params"],
         "MLP_0": {f"hidden_{i}": layer for i, layer in enumerate(hidden)},
@@ -208,7 +207,7 @@ def train(
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
     env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options,
                        config.map_centre(), config.action_size,
-                       ppo.action_scale(config))  # fmt: skip
+                       ppo.action_transform(config))  # fmt: skip
     manager = run.checkpoints()
     if plan == "resume" and manager.latest_step() is not None:
         try:

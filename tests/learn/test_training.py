@@ -384,10 +384,16 @@ def test_normalized_actions_export_the_action_the_map_takes(tmp_path):
     folds the scale into its head, so the NumPy policy's action is the JAX policy's scaled one,
     and a run started from that export acts as it does."""
     from mjx_peg.learn.config import prior_settings
-    from mjx_peg.learn.ppo import action_scale
+    from mjx_peg.learn.ppo import action_transform, from_map_action, to_map_action
 
     config = TINY.replace(**prior_settings("none"), trials=16)
-    assert config.normalized_actions and action_scale(config)[0] == config.init_noise_std
+    m = action_transform(config)
+    assert config.normalized_actions and m[2, 2] == config.init_noise_std
+    if config.joint_stiffness:  # k_t and k_theta: the level plus and minus the ratio
+        s_l, s_r = config.init_noise_std_level, config.init_noise_std
+        np.testing.assert_allclose(m[:2, :2], [[s_l, s_l], [s_r, -s_r]])
+    raw = np.random.default_rng(1).normal(size=(5, config.action_size)).astype(np.float32)
+    np.testing.assert_allclose(from_map_action(config, to_map_action(config, raw)), raw, atol=1e-5)
     train(config, tmp_path / "run", progress=False)
     _, state = load_state(tmp_path / "run")
     obs = np.random.default_rng(4).normal(size=(64, observation.OBS_SIZE)).astype(np.float32)
