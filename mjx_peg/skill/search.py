@@ -172,6 +172,10 @@ class SkillConfig:
     search_budget: float = math.inf
     withdraw_height: float = 0.02  # m: h_w, the withdrawn goal over the estimated entrance
     withdraw_s: float = 1.0  # s: T_w, the time the withdrawal takes to blend in
+    # How the spiral's pitch, radius and speed follow the part (`for_part`): "absolute", as set
+    # (tuned at the paper's 50 mm); "size", times S / 50 mm, the part's characteristic size over
+    # the one they were set at
+    part_scale: str = "absolute"
 
     def __post_init__(self):
         for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_max_yaw",
@@ -205,6 +209,11 @@ class SkillConfig:
             raise UsageError(
                 f"SkillConfig.spiral_lateral must be in [0, 1], got {self.spiral_lateral!r}"
             )
+        if self.part_scale not in PART_SCALES:
+            raise UsageError(
+                f"SkillConfig.part_scale must be one of {', '.join(PART_SCALES)}, got "
+                f"{self.part_scale!r}"
+            )
         if not (0 <= self.force_on < self.force_full < math.inf):
             raise UsageError(
                 "SkillConfig needs 0 <= force_on < force_full, got "
@@ -226,6 +235,12 @@ class SkillConfig:
     def replace(self, **changes) -> SkillConfig:
         return dataclasses.replace(self, **changes)
 
+
+# How the search's lengths follow the part (SkillConfig.part_scale), and the size S they were
+# set at; the spiral's lengths and speed that follow it.
+PART_SCALES = ("absolute", "size")
+REFERENCE_SIZE = 0.05  # m: the paper's training size
+SIZE_SCALED = ("spiral_pitch", "spiral_radius", "spiral_speed")
 
 # The constants a policy may learn per trial (`SearchValues`), in SkillConfig's units.
 LEARNED = ("spiral_pitch", "spiral_radius", "spiral_speed", "spiral_axial", "align_rate",
@@ -254,6 +269,18 @@ def search_values(config: SkillConfig, movement_s: float, like) -> SearchValues:
     fields = {name: getattr(config, name) for name in LEARNED}
     fields["movement_s"] = config.movement_s or movement_s
     return SearchValues(**{k: xp.full(like.shape, v, dtype=like.dtype) for k, v in fields.items()})
+
+
+def for_part(config: SkillConfig, values: SearchValues | None, movement_s: float, size):
+    """The trial's search constants for its part of size S (...,) m: under part_scale "size"
+    the spiral's pitch, radius and speed of `values` (None: the config's) times S / 50 mm, the
+    rest as they are; under "absolute" `values` as given (None stays None: the config's)."""
+    if config.part_scale == "absolute":
+        return values
+    if values is None:
+        values = search_values(config, movement_s, size)
+    factor = size / REFERENCE_SIZE
+    return values._replace(**{name: getattr(values, name) * factor for name in SIZE_SCALED})
 
 
 def _value(config: SkillConfig, values, name: str, column: bool = True):
@@ -536,6 +563,7 @@ __all__ = [
     "centre_of_pressure",
     "constants_from_record",
     "constants_record",
+    "for_part",
     "named_skill",
     "resting_gate",
     "search_values",

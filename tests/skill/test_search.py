@@ -494,3 +494,19 @@ def test_a_trials_own_spiral_runs_at_its_own_pitch_speed_and_radius():
         # successive outward turns are a pitch apart
         out = (tau > config.spiral_wait) & (r < radius * 0.99)
         assert np.diff(np.sort(r[out & (np.abs(s[:, 1]) < 1e-4) & (s[:, 0] > 0)]))[-1] < pitch * 1.1
+
+
+def test_the_spirals_lengths_follow_the_parts_size_where_told():
+    absolute = search.SKILLS["spiral"]
+    scaled = absolute.replace(part_scale="size")
+    size = np.array([0.05, 0.025, 0.08])
+    assert search.for_part(absolute, None, 2.0, size) is None  # the config's, as set
+    values = search.for_part(scaled, None, 2.0, size)
+    for name in search.SIZE_SCALED:
+        np.testing.assert_allclose(getattr(values, name),
+                                   getattr(absolute, name) * size / 0.05, rtol=1e-15)  # fmt: skip
+    np.testing.assert_array_equal(values.align_depth, absolute.align_depth)  # the hole's depth
+    at_50 = search.for_part(scaled, None, 2.0, size[:1])
+    assert at_50.spiral_pitch[0] == absolute.spiral_pitch  # the paper's size: as set, exactly
+    with pytest.raises(UsageError, match="part_scale"):
+        absolute.replace(part_scale="shape")
