@@ -56,7 +56,7 @@ def _save(saved: Checkpoints, state: ppo.TrainingState) -> None:
     saved.save(int(state.iteration), state)
 
 
-def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
+def load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
     """Start from another run's networks and observation statistics (fresh optimizer): its last
     Orbax checkpoint, or, where it has none (a shipped policy under policies/), its exported
     policy (`_from_export`)."""
@@ -200,7 +200,7 @@ def train(
     resuming = plan == "resume" and checkpoints.has_steps(run.checkpoint_dir)
     initial = None
     if config.init_from and not resuming:
-        initial = _load_init(config, state)  # read before `out` is touched
+        initial = load_init(config, state)  # read before `out` is touched
     if primary:
         run.prepare(config, plan, note)
     if jax.process_count() > 1:
@@ -219,7 +219,7 @@ def train(
             run.truncate_tables(int(state.trials))
     else:
         if config.init_from:
-            state = initial if initial is not None else _load_init(config, state)
+            state = initial if initial is not None else load_init(config, state)
         elif config.obs_statistics == "context":
             state = state.replace(
                 normalizer_params=ppo.context_statistics(config, state.normalizer_params)
