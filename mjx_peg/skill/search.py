@@ -181,6 +181,7 @@ class SkillConfig:
 PART_SCALES = ("absolute", "size")
 REFERENCE_SIZE = 0.05  # m: the paper's training size
 SIZE_SCALED = ("spiral_pitch", "spiral_radius", "spiral_speed")
+TEXT_CONSTANTS = ("part_scale",)  # SkillConfig's constants that are names, not numbers
 
 # The constants a policy may learn per trial (`SearchValues`), in SkillConfig's units.
 LEARNED = ("spiral_pitch", "spiral_radius", "spiral_speed", "spiral_axial", "align_rate",
@@ -298,12 +299,19 @@ def constants_from_record(record) -> SkillConfig:
     if not isinstance(record, Mapping):
         raise UsageError(f"skill constants must be an object of SkillConfig fields, got {record!r}")
     names = {f.name for f in dataclasses.fields(SkillConfig)}
+    values = {}
     for name, value in record.items():
         if name not in names:
             raise UsageError(f"skill constants: {name!r} is not a SkillConfig field")
+        if name in TEXT_CONSTANTS:
+            if not isinstance(value, str):
+                raise UsageError(f"skill constants: {name} must be a name, got {value!r}")
+            values[name] = value
+            continue
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise UsageError(f"skill constants: {name} must be a number, got {value!r}")
-    return SkillConfig(**{k: math.inf if v is None else float(v) for k, v in record.items()})
+        values[name] = math.inf if value is None else float(value)
+    return SkillConfig(**values)
 
 
 def named_skill(name: str, constants=None) -> NamedSkill:

@@ -510,3 +510,14 @@ def test_the_spirals_lengths_follow_the_parts_size_where_told():
     assert at_50.spiral_pitch[0] == absolute.spiral_pitch  # the paper's size: as set, exactly
     with pytest.raises(UsageError, match="part_scale"):
         absolute.replace(part_scale="shape")
+
+
+def test_a_skills_record_reads_back_names_and_numbers_alike():
+    config = search.SKILLS["spiral"].replace(part_scale="size")
+    record = search.constants_record(config)
+    assert record["part_scale"] == "size" and record["spiral_pitch"] == 0.01
+    assert search.constants_from_record(record) == config
+    with pytest.raises(UsageError, match="part_scale must be a name"):
+        search.constants_from_record({**record, "part_scale": 1.0})
+    with pytest.raises(UsageError, match="spiral_pitch must be a number"):
+        search.constants_from_record({**record, "spiral_pitch": "ten"})
