@@ -12,7 +12,8 @@ finds here what it meant:
   before the board error model the flange one, from before the skills the paper's skill; exported
   manifests without a "map" likewise; a config that leaves out the error ranges or the budget
   meant TrainConfig's defaults before they became the `quick` preset's (+-4 mm / +-6 deg, 12,288
-  trials);
+  trials); runs from before the learned search constants learned the 38 alone, updated the raw
+  action at a fixed rate of 1e-3 and ran Brax's running observation statistics;
 - trial specs from before the board error model have a flat board at its nominal height;
 - evaluations, training runs and manifests that name a skill without its constants ran that
   skill's: one that no CLI offers now (`search`, `align`) with its constants as they were
@@ -44,6 +45,10 @@ TRAIN_CONFIG = {
     "angular_deg": 6.0,
     "trials": 12288,
     "learn_search": False,
+    "learning_rate": 1e-3,
+    "normalized_actions": False,
+    "kl_target": 0.0,
+    "obs_statistics": "running",
 }
 MANIFEST_ACTION_MAP = "sigmoid"
 

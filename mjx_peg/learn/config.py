@@ -57,7 +57,7 @@ class TrainConfig:
     # outcome, where minibatches chase the noise (docs/design/training_presets.md)
     num_minibatches: int = 1
     update_epochs: int = 4
-    learning_rate: float = 1e-3
+    learning_rate: float = 3e-3  # the first update's; then kl_target adapts it
     entropy_cost: float = 1e-4
     clipping_epsilon: float = 0.2
     init_noise_std: float = 0.4  # exploration std of the gains and compliance diagonal (action)
@@ -66,7 +66,7 @@ class TrainConfig:
     # number; the env and the export multiply its action by them), so that Adam's steps, which
     # move every output alike, move each number by the same fraction of its exploration and each
     # contributes alike to the update's KL; False: the raw action (config.json files without it)
-    normalized_actions: bool = False
+    normalized_actions: bool = True
     # Under normalized_actions: the policy's first two numbers are the stiffnesses' common level
     # and their ratio, k_t at level + ratio and k_theta at level - ratio (the sigmoid map's
     # actions), explored with stds init_noise_std_level and init_noise_std; inserting needs both
@@ -82,13 +82,13 @@ class TrainConfig:
     # Adaptive learning rate: after each iteration the rate is divided by 1.5 where the mean
     # per-number KL of the update passed 2 kl_target and multiplied by 1.5 where it stayed under
     # kl_target / 2, within [learning_rate_min, learning_rate_max]; 0: a fixed learning_rate
-    kl_target: float = 0.0
+    kl_target: float = 0.01
     learning_rate_min: float = 1e-5
     learning_rate_max: float = 1e-2
     # "running": Brax's running statistics of the observations, updated with every iteration;
     # "context": fitted once, before the first trial, to `context_samples` observations drawn
     # from the task (a contextual bandit's observations do not depend on the policy)
-    obs_statistics: str = "running"
+    obs_statistics: str = "context"
     context_samples: int = 4096
     # Every eval_every iterations (0: never) the policy's mean, without exploration, runs
     # eval_trials held-out trials of the task (drawn once from the seed eval_seed), written to
@@ -282,14 +282,11 @@ GENERIC_START = {
     "prior": "none",
     "action_map": "sigmoid",
     "head_init_scale": 0.01,
-    "normalized_actions": True,
     "joint_stiffness": True,
     "init_noise_std": 1.0,
-    "kl_target": 0.01,
-    "learning_rate": 3e-3,
-    "obs_statistics": "context",
 }
-HAND_TUNED_START = {"prior": "baseline", "action_map": "centred"}
+HAND_TUNED_START = {"prior": "baseline", "action_map": "centred", "head_init_scale": 1.0,
+                    "joint_stiffness": False, "init_noise_std": 0.4}  # fmt: skip
 
 
 def prior_settings(prior: str) -> dict:
