@@ -97,7 +97,7 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
 
 
 class _Program:
-    """The compiled trial loop for one scene (shape, size)."""
+    """The compiled trial loop for one scene (a part: shape, size, hole scale)."""
 
     def __init__(self, model: mujoco.MjModel, config: TrialConfig, batch: int, recycle_every: int):
         self.ids = ids = scene.scene_ids(model)
@@ -249,8 +249,8 @@ class _Program:
 
 
 @functools.lru_cache(maxsize=16)
-def _program(shape: str, size: float, config: TrialConfig, batch: int, recycle_every: int):
-    return _Program(scene.load_model(shape, size), config, batch, recycle_every)
+def _program(part: tuple[str, float, float], config: TrialConfig, batch: int, recycle_every: int):
+    return _Program(scene.load_model(*part), config, batch, recycle_every)
 
 
 def run_on_device(
@@ -264,15 +264,15 @@ def run_on_device(
     """Run every trial of `specs` with per-trial `params` on MJX, grouped by scene."""
     n = len(specs)
     inputs_all = _slot_inputs(specs, params, config)
-    keys = [
-        (constants.SHAPES[int(s)], round(float(z), 9))
-        for s, z in zip(specs.shape_id, specs.size, strict=True)
+    keys = [  # the part (shape, size, hole scale) of each trial: one scene each
+        (constants.SHAPES[int(s)], round(float(z), 9), round(float(h), 9))
+        for s, z, h in zip(specs.shape_id, specs.size, specs.hole_scale, strict=True)
     ]
     out_arrays: dict[str, np.ndarray] = {}
     for key in sorted(set(keys)):
         rows = np.array([i for i, k in enumerate(keys) if k == key])
         b = min(batch or 256, len(rows))
-        program = _program(key[0], key[1], config, b, recycle_every)
+        program = _program(key, config, b, recycle_every)
         inputs = {k: jnp.asarray(v[rows]) for k, v in inputs_all.items()}
         out = jax.device_get(program.run(inputs))
         for name, value in out._asdict().items():

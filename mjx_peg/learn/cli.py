@@ -24,6 +24,7 @@ from mjx_peg import cli, outdir
 from mjx_peg.engines import ENGINES
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import ACTION_MAPS, PRIORS, prior_settings
+from mjx_peg.policy.observation import LAYOUTS
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world.constants import GRASP_MODELS
 
@@ -113,6 +114,13 @@ def parser() -> argparse.ArgumentParser:
         help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
+    p.add_argument(
+        "--observation",
+        choices=tuple(LAYOUTS),
+        help="what the policy reads of a part (default geometry: symmetry order, radii, "
+        "clearance, depth; names: a one-hot of the paper's three shapes and the size, the "
+        "shipped policies'; --init-from takes its run's)",
+    )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -144,6 +152,7 @@ def resolve_config(args):
         "grasp_model": args.grasp_model,
         "skill": args.skill,
         "eval_every": args.eval_every,
+        "observation": args.observation,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.fixed_skill:
@@ -158,13 +167,20 @@ def resolve_config(args):
     if config.init_from:
         config = config.replace(init_from=resolve_policy(config.init_from, "--init-from", False))
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
-        source = RunDir(config.init_from).read_config().action_map
+        trained = RunDir(config.init_from).read_config()
+        source = trained.action_map
         if args.action_map not in (None, source):
             raise UsageError(
                 f"--action-map {args.action_map}: {config.init_from} was trained with the {source}"
                 " map, and its networks mean that map's actions"
             )
-        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source)
+        if args.observation not in (None, trained.observation):
+            raise UsageError(
+                f"--observation {args.observation}: {config.init_from} was trained on the "
+                f"{trained.observation} layout, and its networks read that layout"
+            )
+        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source,
+                                observation=trained.observation)  # fmt: skip
     return config
 
 

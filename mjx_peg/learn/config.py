@@ -24,6 +24,7 @@ from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
+from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import N_LEARNED, N_PARAMS
 from mjx_peg.skill.search import LEARNED, SkillConfig, constants_record, named_skill
@@ -128,6 +129,10 @@ class TrainConfig:
     # where the skill has them (the paper's has none). False: the 38 alone, the skill's constants
     # fixed (config.json files without it)
     learn_search: bool = True
+    # The policy's observation layout (policy.observation.LAYOUTS): "geometry" reads the part by
+    # its geometry, "names" by a one-hot of the paper's three shapes; config.json files without
+    # it were "names" (file_versions)
+    observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -152,6 +157,7 @@ class TrainConfig:
             raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
+        check_layout(self.observation)
         if self.engine not in ENGINES:
             raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs", "context_samples",

@@ -5,9 +5,10 @@ estimated hole pose, the shape and the size (`observation.py`), outputs the 38 c
 numbers once, and the trial that follows earns the reward. So `reset` draws a `TrialSpec` and
 returns its observation, and `step` runs the whole trial and ends the episode (`done` = 1).
 
-The observation is a dict: "state" for the policy (`observation.observe`) and
-"privileged_state" for the critic only (that plus the true errors and friction,
-`observation.privileged`): an asymmetric actor-critic, the policy never sees the true errors.
+The observation is a dict: "state" for the policy (`observation.observe_part`, in the run's
+layout, `TrainConfig.observation`) and "privileged_state" for the critic only (that plus the
+true errors and friction, `observation.privileged`): an asymmetric actor-critic, the policy never
+sees the true errors.
 
 The physics runs on the host: `reset` and `step` call NumPy through `jax.pure_callback`, and
 under `jax.vmap` the callback sees the whole batch at once, so one `run_trials` call runs every
@@ -43,11 +44,15 @@ from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 # contact metrics (TrialResult: peak sensed force, N; chatter of the true axial force, N).
 METRICS = ("return", "success", "time_s", "unstable", "settled", "protective_stop", "peak_force",
            "chatter")  # fmt: skip
-# "state": what the policy (and the robot) sees; "privileged_state": the critic's input, the same
-# plus the trial's true errors and friction (observation.privileged), used only in training.
-PRIVILEGED_SIZE = observation.OBS_SIZE + len(observation.PRIVILEGED_NAMES)
-OBSERVATION_SIZE = {"state": (observation.OBS_SIZE,), "privileged_state": (PRIVILEGED_SIZE,)}
 OBS_KEYS = ("state", "privileged_state")
+
+
+def observation_sizes(layout: str) -> dict[str, tuple[int]]:
+    """{"state": what the policy (and the robot) sees in `layout`; "privileged_state": the
+    critic's input, the same plus the trial's true errors and friction (observation.privileged),
+    used only in training} -> their (size,)."""
+    width = len(observation.LAYOUTS[observation.check_layout(layout)])
+    return {"state": (width,), "privileged_state": (width + len(observation.PRIVILEGED_NAMES),)}
 
 
 def specs_from_seeds(task: TaskConfig, seeds: np.ndarray) -> TrialSpec:
@@ -68,6 +73,7 @@ class InsertionEnv(Env):
         engine: str = "mujoco",
         engine_options: dict | None = None,
         action_centre=None,
+        layout: str = observation.DEFAULT_LAYOUT,
         action_size: int = N_PARAMS,
         action_transform=None,
     ):
@@ -87,6 +93,8 @@ class InsertionEnv(Env):
         self.action_transform = (
             None if action_transform is None else np.asarray(action_transform, np.float32)
         )
+        self.layout = layout  # the policy's observation layout (observation.LAYOUTS)
+        self.sizes = observation_sizes(layout)
         self._last_specs: tuple[bytes, TrialSpec] | None = None  # reset's draw, reused by step
 
     def _specs(self, seeds: np.ndarray) -> TrialSpec:
@@ -99,7 +107,7 @@ class InsertionEnv(Env):
 
     @property
     def observation_size(self) -> dict[str, tuple[int]]:
-        return OBSERVATION_SIZE
+        return self.sizes
 
     @property
     def action_size(self) -> int:
@@ -112,12 +120,12 @@ class InsertionEnv(Env):
     # Host side (NumPy). Called with a leading batch dim under vmap, without one otherwise.
     def _observe_host(self, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         specs = self._specs(seeds)
-        obs = observation.observe_specs(specs)
+        obs = observation.observe_specs(specs, self.layout)
         full = np.concatenate([obs, observation.privileged_specs(specs)], axis=-1)
         batch = np.shape(seeds)[:-1]
         return (
-            obs.astype(np.float32).reshape(batch + OBSERVATION_SIZE["state"]),
-            full.astype(np.float32).reshape(batch + OBSERVATION_SIZE["privileged_state"]),
+            obs.astype(np.float32).reshape(batch + self.sizes["state"]),
+            full.astype(np.float32).reshape(batch + self.sizes["privileged_state"]),
         )
 
     def _run_host(self, seeds: np.ndarray, vectors: np.ndarray):
@@ -141,7 +149,7 @@ class InsertionEnv(Env):
         seed = jax.random.bits(rng, (2,), jnp.uint32)
         state, privileged = jax.pure_callback(
             self._observe_host,
-            tuple(jax.ShapeDtypeStruct(OBSERVATION_SIZE[k], jnp.float32) for k in OBS_KEYS),
+            tuple(jax.ShapeDtypeStruct(self.sizes[k], jnp.float32) for k in OBS_KEYS),
             seed,
             vmap_method="broadcast_all",
         )

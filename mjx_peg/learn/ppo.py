@@ -31,7 +31,7 @@ from brax.training.agents.ppo import losses as ppo_losses
 from brax.training.agents.ppo import networks as ppo_networks
 
 from mjx_peg.learn.config import TrainConfig
-from mjx_peg.learn.env import METRICS, OBSERVATION_SIZE, InsertionEnv
+from mjx_peg.learn.env import METRICS, InsertionEnv, observation_sizes
 from mjx_peg.skill.params import (
     DEFAULT_RANGES,
     N_PARAMS,
@@ -64,7 +64,7 @@ class TrainingState:
 def make_networks(config: TrainConfig) -> ppo_networks.PPONetworks:
     """Brax PPO networks: swish MLPs, a Gaussian policy with a learned state-independent std."""
     return ppo_networks.make_ppo_networks(
-        OBSERVATION_SIZE,
+        observation_sizes(config.observation),
         config.action_size,
         preprocess_observations_fn=running_statistics.normalize,
         policy_hidden_layer_sizes=tuple(config.policy_hidden),
@@ -228,7 +228,8 @@ def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> Train
         policy=policy,
         value=networks.value_network.init(k_value),
     )
-    obs_spec = {k: specs.Array(v, jnp.dtype("float32")) for k, v in OBSERVATION_SIZE.items()}
+    sizes = observation_sizes(config.observation)
+    obs_spec = {k: specs.Array(v, jnp.dtype("float32")) for k, v in sizes.items()}
     return TrainingState(
         optimizer_state=make_optimizer(config).init(params),
         params=params,
@@ -359,9 +360,11 @@ def deterministic_actions(config: TrainConfig, state: TrainingState, obs: jax.Ar
     """(B, 38) or (B, 47): the JAX policy's deterministic action (Brax's inference fn,
     deterministic=True).
 
-    obs: (B, 8) policy observations; the critic's input is not used by the policy.
+    obs: (B, n) policy observations in the run's layout; the critic's input is not used by the
+    policy.
     """
-    critic = jnp.zeros(obs.shape[:-1] + OBSERVATION_SIZE["privileged_state"], obs.dtype)
+    critic = jnp.zeros(obs.shape[:-1] + observation_sizes(config.observation)["privileged_state"],
+                       obs.dtype)  # fmt: skip
     obs = {"state": obs, "privileged_state": critic}
     networks = make_networks(config)
     policy = ppo_networks.make_inference_fn(networks)(

@@ -26,10 +26,11 @@ from mjx_peg.learn import checkpoints, ppo
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
-from mjx_peg.learn.env import PRIVILEGED_SIZE, InsertionEnv
+from mjx_peg.learn.env import InsertionEnv
 from mjx_peg.learn.monitor import Board, HeldOut
 from mjx_peg.learn.run_dir import RunDir
 from mjx_peg.policy.export import PolicyError, load_policy, save_policy
+from mjx_peg.policy.observation import PRIVILEGED_NAMES
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,11 @@ def load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingS
     # a run of another action size starts from its export (`_from_export` widens 38 to 47)
     has_checkpoint = has_checkpoint and other.action_size == config.action_size
     critic_differs = has_checkpoint and other.value_hidden != config.value_hidden
+    if other.observation != config.observation:
+        raise UsageError(
+            f"--init-from {source.path} observes the {other.observation} layout, this run the "
+            f"{config.observation} one"
+        )
     if other.policy_hidden != config.policy_hidden or critic_differs:
         raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
@@ -117,7 +123,7 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
         "Dense_0": head,
     }
     params = template.params.replace(policy={"params": tree})
-    extra = PRIVILEGED_SIZE - policy.obs_mean.size
+    extra = len(PRIVILEGED_NAMES)
     mean = {
         "state": policy.obs_mean,
         "privileged_state": np.concatenate([policy.obs_mean, np.zeros(extra, np.float32)]),
@@ -206,7 +212,7 @@ def train(
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
     env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options,
-                       config.map_centre(), config.action_size,
+                       config.map_centre(), config.observation, config.action_size,
                        ppo.action_transform(config))  # fmt: skip
     manager = run.checkpoints()
     if plan == "resume" and manager.latest_step() is not None:

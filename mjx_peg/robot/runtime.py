@@ -50,50 +50,64 @@ class SafetyStop(RuntimeError):
 
 @dataclasses.dataclass(frozen=True)
 class HoleEstimate:
-    """Where the skill believes the hole is: centre x, y (m), yaw (rad), shape, size S (m)."""
+    """Where the skill believes the hole is and what part it takes: centre x, y (m), yaw (rad),
+    shape, size S (m) and the hole's clearance, hole size / peg size (None: the shape's paper
+    fit, constants.HOLE_SCALE)."""
 
     x: float
     y: float
     yaw: float
     shape: str
     size: float
+    hole_scale: float | None = None
 
     def __post_init__(self):
         if self.shape not in constants.SHAPES:
             raise UsageError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
-        for name in ("x", "y", "yaw", "size"):
+        if self.hole_scale is None:
+            object.__setattr__(self, "hole_scale", constants.HOLE_SCALE[self.shape])
+        for name in ("x", "y", "yaw", "size", "hole_scale"):
             if not math.isfinite(getattr(self, name)):
                 raise UsageError(
                     f"hole {name} must be a finite number, got {getattr(self, name)!r}"
                 )
         if self.size <= 0:
             raise UsageError(f"hole size must be positive (m), got {self.size!r}")
+        lo, hi = constants.HOLE_SCALE_RANGE
+        if not lo <= self.hole_scale <= hi:
+            raise UsageError(
+                f"hole scale (hole size / peg size) must lie in [{lo:g}, {hi:g}], "
+                f"got {self.hole_scale!r}"
+            )
 
     @classmethod
     def of_trial(cls, specs, index: int) -> HoleEstimate:
-        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw, shape, size)."""
+        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw and part)."""
         x, y = (float(v) for v in specs.hole_est_pos[index])
         shape = constants.SHAPES[int(specs.shape_id[index])]
-        return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]))
+        return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]),
+                   float(specs.hole_scale[index]))  # fmt: skip
 
-    def observation(self) -> np.ndarray:
-        """(1, 8) policy observation of this estimate."""
-        return observation.observe(
+    def observation(self, layout: str = "names") -> np.ndarray:
+        """(1, n) policy observation of this estimate in `layout` (observation.LAYOUTS)."""
+        return observation.observe_part(
+            layout,
             np.array([constants.SHAPES.index(self.shape)]),
             np.array([self.size]),
+            np.array([self.hole_scale]),
             np.array([[self.x, self.y]]),
             np.array([self.yaw]),
         )
 
 
 def controller_vector(policy: str | Policy, hole: HoleEstimate) -> np.ndarray:
-    """(38,) controller numbers for `hole` from a loaded `Policy`, a run directory holding
-    policy.npz, or 'baseline'."""
+    """(38,) controller numbers for `hole` from a loaded `Policy` (in its observation layout), a
+    run directory holding policy.npz, or 'baseline'."""
     if isinstance(policy, str):
         if policy == "baseline":
             return baseline_params()
         policy = load_policy(policy)
-    return policy.vectors_for(hole.observation())[0]
+    return policy.vectors_for(hole.observation(policy.layout))[0]
 
 
 class SkillRuntime:

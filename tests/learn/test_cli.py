@@ -73,3 +73,21 @@ def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_
     assert again.returncode == 0 and again.stderr.count("is finished: skipped") == 2
     bad = train_py(["--seeds", "3,3", "--out", str(tmp_path / "x"), *args])
     assert bad.returncode == 2 and "repeats a seed" in bad.stderr
+
+
+def test_init_from_takes_its_runs_observation_layout():
+    """--init-from a run trained on the names layout (policies/paper) reads that layout; asking
+    for another is one line; a new run reads the geometry layout unless told."""
+    import pytest
+
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn import cli
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv)))
+
+    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "names"
+    assert resolve().observation == "geometry"
+    assert resolve("--observation", "names").observation == "names"
+    with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
+        resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")

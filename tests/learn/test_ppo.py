@@ -15,7 +15,8 @@ from mjx_peg.policy.network import controller_vector
 def test_numpy_policy_equals_jax_deterministic_action(tiny_run):
     out, _ = tiny_run
     config, state = load_state(out)
-    obs = np.random.default_rng(0).normal(size=(1000, observation.OBS_SIZE)).astype(np.float32)
+    width = len(observation.LAYOUTS[config.observation])
+    obs = np.random.default_rng(0).normal(size=(1000, width)).astype(np.float32)
     jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
     np_action = load_policy(out).act(obs)
     assert np.max(np.abs(np_action - jax_action)) < 1e-5
@@ -26,7 +27,7 @@ def test_prior_starts_at_the_baseline(tiny_config):
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.skill.baseline import baseline_params
 
-    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
+    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 9)), jnp.float32)  # geometry
     base = baseline_params()
     for cfg in (config, config.replace(action_map="sigmoid")):
         state = init_state(cfg, make_networks(cfg))

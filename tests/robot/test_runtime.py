@@ -355,7 +355,8 @@ def test_cli_runs_and_reports(tmp_path, capsys):
         (["--policy", "no/such/run"], "--policy no/such/run: no such run directory"),
         (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
         (["--time-limit", "nan"], "--time-limit must be a number in [0.01, 600] s, got 'nan'"),
-        (["--shape", "hexagon"], "argument --shape: invalid choice"),
+        (["--shape", "octagon"], "argument --shape: invalid choice"),
+        (["--hole-scale", "loose"], "--hole-scale must be paper or tight or a number in [1.01,"),
     ],
 )
 def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
@@ -367,9 +368,10 @@ def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"shape": "hexagon"}, "hole shape must be one of"),
+        ({"shape": "octagon"}, "hole shape must be one of"),
         ({"size": 0.0}, "hole size must be positive"),
         ({"x": float("nan")}, "hole x must be a finite number"),
+        ({"hole_scale": 1.5}, r"hole scale \(hole size / peg size\) must lie in \[1.01, 1.25\]"),
     ],
 )
 def test_hole_estimate_rejects_bad_values(kwargs, message):
@@ -410,3 +412,19 @@ def test_a_policys_own_search_constants_reach_the_arm():
     engine = cpu_engine.run_on_cpu(specs, as_controller_params(np.concatenate([base, own * np.r_[
         [1.0] * 8, 2.0]]), 1), config, threads=1)  # fmt: skip
     assert engine.steps[0] == runs["slow"].commands
+
+
+def test_a_hole_estimate_gives_either_observation_of_its_part():
+    """The hole's clearance defaults to the shape's paper fit; the estimate observes itself in
+    the names layout (the shipped policies') or the geometry one, as the policy asks."""
+    from mjx_peg.policy import observation
+
+    hole = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03)
+    assert hole.hole_scale == 1.08
+    tight = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03, 1.02)
+    args = (np.array([4]), np.array([0.03]), np.array([1.02]), np.array([[0.45, -0.1]]))
+    np.testing.assert_array_equal(
+        tight.observation("geometry"), observation.observe_geometry(*args, np.array([0.3]))
+    )
+    assert tight.observation().shape == (1, 8) and tight.observation("geometry").shape == (1, 9)
+    assert tight.observation("geometry")[0, 7] == pytest.approx(0.02 * 0.0075 / 0.001)
