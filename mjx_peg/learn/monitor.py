@@ -29,7 +29,7 @@ class HeldOut:
         self.config = config
         self.specs = sample_trials(config.task(), np.random.default_rng(config.eval_seed),
                                    config.eval_trials)  # fmt: skip
-        self.obs = observation.observe_specs(self.specs).astype(np.float32)
+        self.obs = observation.observe_specs(self.specs, config.observation).astype(np.float32)
         self.engine_options = dict(engine_options or {})
 
     def evaluate(self, state: ppo.TrainingState) -> dict[str, float]:

@@ -120,7 +120,7 @@ def context_statistics(config: TrainConfig, normalizer_params):
 
     specs = sample_trials(config.task(), np.random.default_rng([config.seed, 1]),
                           config.context_samples)  # fmt: skip
-    obs = observation.observe_specs(specs)
+    obs = observation.observe_specs(specs, config.observation)
     full = np.concatenate([obs, observation.privileged_specs(specs)], axis=-1)
     count = config.context_samples
     mean, std, summed = {}, {}, {}

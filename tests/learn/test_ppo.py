@@ -47,7 +47,8 @@ def test_a_generic_start_is_the_mid_range_controller_for_every_observation():
     config = PRESETS["paper"].replace(**prior_settings("none"))
     assert config.action_size == 47 and config.map_centre() is None
     state = init_state(config, make_networks(config))
-    obs = jnp.asarray(np.random.default_rng(5).normal(size=(64, 8)), jnp.float32)
+    width = len(observation.LAYOUTS[config.observation])
+    obs = jnp.asarray(np.random.default_rng(5).normal(size=(64, width)), jnp.float32)
     action = np.asarray(deterministic_actions(config, state, obs))
     assert np.max(np.abs(action)) < 0.05
     middle = np.asarray(vector_from_controller(controller_from_action(np.zeros(47))))

@@ -221,6 +221,7 @@ def test_normalized_actions_export_the_action_the_map_takes(tmp_path, tiny_confi
     np.testing.assert_allclose(from_map_action(config, to_map_action(config, raw)), raw, atol=1e-5)
     train(config, tmp_path / "run", progress=False)
     _, state = load_state(tmp_path / "run")
-    obs = np.random.default_rng(4).normal(size=(64, observation.OBS_SIZE)).astype(np.float32)
+    width = len(observation.LAYOUTS[config.observation])
+    obs = np.random.default_rng(4).normal(size=(64, width)).astype(np.float32)
     jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
     np.testing.assert_allclose(load_policy(tmp_path / "run").act(obs), jax_action, atol=1e-5)
