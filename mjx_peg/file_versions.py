@@ -13,7 +13,9 @@ finds here what it meant:
   before the geometry observation the `names` one; exported manifests without a "map" or an
   observation "layout" likewise; a config that leaves out the error ranges or the budget
   meant TrainConfig's defaults before they became the `quick` preset's (+-4 mm / +-6 deg, 12,288
-  trials);
+  trials); runs from before the learned search constants learned the 38 alone, updated the raw
+  action at a fixed rate of 1e-3 and ran Brax's running observation statistics, and those from
+  before the geometry observation read the part by the names of the paper's three shapes;
 - trial specs from before the board error model have a flat board at its nominal height, those
   from before the hole's clearance was a parameter the paper's clearance of their shape;
 - evaluations, training runs and manifests that name a skill without its constants ran that
@@ -45,6 +47,11 @@ TRAIN_CONFIG = {
     "linear_mm": 4.0,
     "angular_deg": 6.0,
     "trials": 12288,
+    "learn_search": False,
+    "learning_rate": 1e-3,
+    "normalized_actions": False,
+    "kl_target": 0.0,
+    "obs_statistics": "running",
     "observation": "names",
 }
 MANIFEST_ACTION_MAP = "sigmoid"

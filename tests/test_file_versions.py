@@ -20,6 +20,8 @@ def test_a_training_config_keeps_the_former_defaults():
     assert file_versions.train_config({"seed": 1}) == {
         "seed": 1, "action_map": "sigmoid", "grasp_model": "flange", "skill": "paper",
         "skill_constants": None, "linear_mm": 4.0, "angular_deg": 6.0, "trials": 12288,
+        "learn_search": False, "learning_rate": 1e-3, "normalized_actions": False,
+        "kl_target": 0.0, "obs_statistics": "running",
         "observation": "names",
     }  # fmt: skip
     assert file_versions.train_config({"trials": 3584})["trials"] == 3584

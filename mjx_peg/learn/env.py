@@ -37,7 +37,7 @@ with contextlib.redirect_stdout(io.StringIO()):
 from mjx_peg.engines import resolve_engine, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.policy import network, observation
-from mjx_peg.skill.params import N_PARAMS, check_centre
+from mjx_peg.skill.params import N_LEARNED, N_PARAMS, check_centre
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 # Per trial: the outcome, how a failure ended (unstable, settled, protective stop) and the
@@ -74,6 +74,8 @@ class InsertionEnv(Env):
         engine_options: dict | None = None,
         action_centre=None,
         layout: str = observation.DEFAULT_LAYOUT,
+        action_size: int = N_PARAMS,
+        action_transform=None,
     ):
         self.task = task or TaskConfig()
         self.trial = trial or TrialConfig(time_limit_s=self.task.time_limit_s)
@@ -81,6 +83,16 @@ class InsertionEnv(Env):
         self.engine_options = dict(engine_options or {})
         # the centred map's (38,) centre, or None for the sigmoid map (network.controller_vector)
         self.action_centre = None if action_centre is None else check_centre(action_centre)
+        if action_size not in (N_PARAMS, N_LEARNED):
+            raise ValueError(f"action_size {action_size}: {N_PARAMS} or {N_LEARNED}")
+        if self.action_centre is not None and self.action_centre.size != action_size:
+            raise ValueError(f"a centre of {self.action_centre.size} numbers, actions of "
+                             f"{action_size}")  # fmt: skip
+        self._action_size = action_size
+        # (A, A): the map's action is the network's times it (learn.ppo.action_transform)
+        self.action_transform = (
+            None if action_transform is None else np.asarray(action_transform, np.float32)
+        )
         self.layout = layout  # the policy's observation layout (observation.LAYOUTS)
         self.sizes = observation_sizes(layout)
         self._last_specs: tuple[bytes, TrialSpec] | None = None  # reset's draw, reused by step
@@ -99,7 +111,7 @@ class InsertionEnv(Env):
 
     @property
     def action_size(self) -> int:
-        return N_PARAMS
+        return self._action_size
 
     @property
     def backend(self) -> str:
@@ -119,7 +131,7 @@ class InsertionEnv(Env):
     def _run_host(self, seeds: np.ndarray, vectors: np.ndarray):
         batch = np.shape(seeds)[:-1]
         specs = self._specs(seeds)
-        params = np.asarray(vectors, dtype=np.float64).reshape(-1, N_PARAMS)
+        params = np.asarray(vectors, dtype=np.float64).reshape(-1, self._action_size)
         result = run_trials(specs, params, self.engine, self.trial, **self.engine_options)
         out = (
             result.reward,
@@ -153,6 +165,8 @@ class InsertionEnv(Env):
         )
 
     def step(self, state: State, action: jax.Array) -> State:
+        if self.action_transform is not None:
+            action = action @ self.action_transform
         vector = network.controller_vector(action, self.action_centre)
         scalar = jax.ShapeDtypeStruct((), jnp.float32)
         outcome = jax.pure_callback(

@@ -44,13 +44,14 @@ class PolicyError(UsageError):
 
 @dataclasses.dataclass(frozen=True)
 class Policy:
-    """A deterministic policy: observation -> action -> 38 physical controller numbers."""
+    """A deterministic policy: observation -> action -> 38 physical controller numbers, and the
+    contact search's 9 learned constants where it learned them (47)."""
 
     layers: tuple[tuple[np.ndarray, np.ndarray], ...]
     obs_mean: np.ndarray
     obs_std: np.ndarray
     manifest: dict
-    centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
+    centre: np.ndarray | None = None  # (38,) or (47,) the centred map's centre; None: sigmoid
     layout: str = "names"  # its observation layout (observation.LAYOUTS)
 
     @property
@@ -97,6 +98,7 @@ def _ranges_json(ranges: params.ParamRanges, centre) -> dict:
         "k_t": list(ranges.k_t),
         "k_theta": list(ranges.k_theta),
         "compliance_bound": [list(row) for row in ranges.compliance_bound()],
+        "search": {name: list(params.SEARCH_RANGES[name]) for name in params.LEARNED_NAMES[38:]},
     }
     if centre is None:
         return {
@@ -153,9 +155,13 @@ def save_policy(
     skill: NamedSkill | None = None,
     layout: str | None = None,
 ) -> Path:
-    """Write `policy.npz` + `manifest.json` into run_dir, each atomically. `skill`: the skill to
+    """Write `policy.npz` + `manifest.json` into run_dir, each atomically; the network outputs
+    38 numbers (the controller) or 47 (and the contact search's constants). `skill`: the skill to
     run it with (default: the one `config` trained with); `layout`: its observation layout
     (default: the one `config` names, `TrainConfig.observation`)."""
+    size = int(np.shape(layers[-1][0])[1])
+    if size not in (params.N_PARAMS, params.N_LEARNED):
+        raise ValueError(f"a policy outputs {params.N_PARAMS} or {params.N_LEARNED} numbers")
     layout = observation.check_layout(layout or file_versions.train_config(config)["observation"])
     width = len(observation.LAYOUTS[layout])
     assert np.shape(layers[0][0])[0] == width == np.size(obs_mean) == np.size(obs_std), (
@@ -186,8 +192,9 @@ def save_policy(
             "output": "mean action; deterministic policy (Brax PPO, normal distribution)",
         },
         "action": {
-            "size": params.N_PARAMS,
-            "param_names": list(params.PARAM_NAMES),
+            "size": size,
+            "param_names": list(params.LEARNED_NAMES[:size]),
+            "units": list(params.LEARNED_UNITS[:size]),
             "ranges": _ranges_json(params.DEFAULT_RANGES, centre),
         },
         "skill": (skill or trained_skill(config)).record(),
@@ -283,8 +290,14 @@ def load_policy(path) -> Policy:
         if kernel.shape != shape or bias.shape != (shape[1],) or shape[0] != width:
             raise PolicyError(f"{npz_path}: layer {i} has shape {kernel.shape}, expected {shape}")
         width = shape[1]
-    if width != params.N_PARAMS:
-        raise PolicyError(f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS}")
+    if width not in (params.N_PARAMS, params.N_LEARNED):
+        raise PolicyError(
+            f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS} or "
+            f"{params.N_LEARNED}"
+        )
+    if centre is not None and centre.shape != (width,):
+        raise PolicyError(f"{manifest_path}: the map's centre has {centre.size} numbers, the "
+                          f"network outputs {width}")  # fmt: skip
     if obs_mean.shape != (len(expected),) or obs_std.shape != (len(expected),):
         raise PolicyError(f"{npz_path}: observation normalization has the wrong shape")
     everything = [obs_mean, obs_std] + [w for layer in layers for w in layer]

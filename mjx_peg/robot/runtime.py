@@ -39,6 +39,7 @@ from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import for_part
 from mjx_peg.world import constants
 from mjx_peg.world.task import goal_pose
 
@@ -116,7 +117,8 @@ class SkillRuntime:
     def __init__(self, vector, hole: HoleEstimate, config: TrialConfig | None = None):
         self.config = cfg = config or TrialConfig()
         p = as_controller_params(vector, 1)
-        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
+        # the search's learned constants, where the vector has them, stay (1,) arrays
+        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0], p.search)
         self.hole = hole
         self.basis = fitted_basis(cfg.movement)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
@@ -137,7 +139,9 @@ class SkillRuntime:
         cfg = self.config
         tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
-        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau)
+        search = for_part(cfg.search, self.params.search, cfg.movement.duration,
+                          np.array([self.hole.size]))  # fmt: skip
+        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau, search)
         # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
         # the software filter only, its pole for the command's period.
         ft = sensor.filter_params(cfg.sensor, cfg.timestep, np.zeros(1, np.uint32),

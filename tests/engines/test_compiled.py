@@ -7,7 +7,8 @@ from mjx_peg.engines import compiled, period, sims
 from mjx_peg.engines import mujoco as cpu_engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, control_config, fitted_basis
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.params import SEARCH_RANGES
+from mjx_peg.skill.search import LEARNED, SKILLS
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 # One trial config for every compiled run here: its programs compile once per slot count.
@@ -102,6 +103,29 @@ def test_compiled_results_do_not_depend_on_lanes_or_slots():
     assert 0 < reference.success.sum() < 12, reference.summary()
     np.testing.assert_array_equal(one.success, reference.success)
     np.testing.assert_allclose(one.time_s, reference.time_s, atol=0.05)
+
+
+def test_a_47_number_policy_runs_alike_on_both_passes():
+    """Learned search constants per trial (47 numbers, each within 30 % of the spiral skill's,
+    in range): the compiled pass gives the NumPy pass's outcomes and steps, tips within 1e-9 m;
+    and they are used (the same 38 numbers alone end elsewhere)."""
+    n = 8
+    specs, rng = _specs(n, seed=6), np.random.default_rng(1)
+    spiral = SKILLS["spiral"]
+    low, high = (np.array([SEARCH_RANGES[k][i] for k in LEARNED]) for i in (0, 1))
+    search = np.clip([getattr(spiral, k) for k in LEARNED] * rng.uniform(0.7, 1.3, (n, 9)),
+                     low, high)  # fmt: skip
+    controller = np.tile(baseline_params(), (n, 1)) * rng.uniform(0.8, 1.2, (n, 38))
+    params = as_controller_params(np.concatenate([controller, search], axis=1), n)
+    numpy_pass = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, compiled=False)
+    compiled_pass = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, compiled=True)
+    assert 0 < numpy_pass.success.sum() < n, numpy_pass.summary()
+    np.testing.assert_array_equal(compiled_pass.success, numpy_pass.success)
+    np.testing.assert_array_equal(compiled_pass.steps, numpy_pass.steps)
+    np.testing.assert_allclose(compiled_pass.final_tip_pos, numpy_pass.final_tip_pos, atol=1e-9)
+    alone = cpu_engine.run_on_cpu(specs, as_controller_params(controller, n), CONFIG, threads=1,
+                                  compiled=False)  # fmt: skip
+    assert np.abs(alone.final_tip_pos - numpy_pass.final_tip_pos).max() > 1e-3
 
 
 def test_a_compiled_lane_leaves_jax_in_float32_and_serves_observers():

@@ -22,6 +22,7 @@ from mjx_peg.robot.runtime import (
     run_skill,
 )
 from mjx_peg.robot.sim_arm import SimArm
+from mjx_peg.skill import search
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SKILLS, NamedSkill, skill_config
 from mjx_peg.world import constants
@@ -388,6 +389,29 @@ def test_sim_arm_rejects_bad_arguments():
     with pytest.raises(ValueError, match="actuator_lag_s must be a number >= 0"):
         SimArm(specs, 0, actuator_lag_s=-0.005)
     assert constants.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
+
+
+def test_a_policys_own_search_constants_reach_the_arm():
+    """A 47-number vector (the controller and the contact search's learned constants) runs on
+    the arm as the engine runs it: the constants of the skill's config give the 38-vector's run
+    bit for bit, other constants another run, the engine's to 1e-9 m."""
+    specs = _specs(n=1, linear_mm=6.0, angular_deg=4.0)
+    config = SHORT.replace(search=skill_config("spiral"))
+    own = np.array([getattr(config.search, name) for name in search.LEARNED])
+    own[search.LEARNED.index("movement_s")] = config.movement.duration
+    base = baseline_params()
+    runs = {}
+    for name, vec in (("38", base), ("47", np.concatenate([base, own])),
+                      ("slow", np.concatenate([base, own * np.r_[[1.0] * 8, 2.0]]))):  # fmt: skip
+        arm = SimArm(specs, 0)
+        runs[name] = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config),
+                               done=arm.inserted)  # fmt: skip
+    np.testing.assert_array_equal(runs["47"].log["tcp_pos"], runs["38"].log["tcp_pos"])
+    slow = runs["slow"].log["tcp_pos"]
+    assert not np.array_equal(slow[:200], runs["38"].log["tcp_pos"][:200])  # T doubled: slower
+    engine = cpu_engine.run_on_cpu(specs, as_controller_params(np.concatenate([base, own * np.r_[
+        [1.0] * 8, 2.0]]), 1), config, threads=1)  # fmt: skip
+    assert engine.steps[0] == runs["slow"].commands
 
 
 def test_a_hole_estimate_gives_either_observation_of_its_part():
