@@ -10,18 +10,17 @@ A slot whose trial ends takes the next trial at once (`scene.start_trial` on a s
 MjData, the integration state and model fields copied in, mj_forward), so cost follows the
 simulated time actually used. Live trials are rows [0, n), sorted by scene and simulation; a
 trial's constants and state (`period.TrialConsts`, `period.TrialState`) move with it when rows
-are re-sorted. Lanes run in Python threads: while one steps in C, another runs its NumPy pass.
-A trial's arithmetic does not depend on its lane, row, batch or thread count, so results are
-bit-identical whatever the threads, slots and batch threads (tested).
+are re-sorted. Lanes run in Python threads (`engines/threaded.py`): while one steps in C, another
+runs its NumPy pass. A trial's arithmetic does not depend on its lane, row, batch or thread
+count, so results are bit-identical whatever the threads, slots and batch threads (tested).
 
-Profiling: `run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's thread for each
-stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it the lanes read
-no clock. It only reads the clock: the results are the same with it.
+Profiling: `threaded.run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's
+thread for each stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it
+the lanes read no clock. It only reads the clock: the results are the same with it.
 """
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -29,7 +28,6 @@ from collections.abc import Callable
 import numpy as np
 
 from mjx_peg.array_api import tree_map
-from mjx_peg.cores import cores
 from mjx_peg.engines import interrupt, period, sims
 from mjx_peg.engines.trial import (
     TrialConfig,
@@ -44,7 +42,7 @@ from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.skill.search import for_part
 from mjx_peg.world import mujoco_log
-from mjx_peg.world.task import TrialSpec, goal_pose, hole_frame
+from mjx_peg.world.task import goal_pose, hole_frame
 
 # MuJoCo's warnings go where the CLI sent them (its output directory or nowhere), never to
 # MUJOCO_LOG.TXT in the working directory: world/mujoco_log.py; here for the worker processes.
@@ -53,11 +51,6 @@ mujoco_log.install()
 # Rows of one lane. The NumPy pass costs ~300 us per period whatever the batch plus ~2 us per
 # trial, so bigger batches amortize it (BENCHMARKS.md); 512 trials of 60 s are ~15 M steps.
 SLOTS_PER_THREAD = 512
-
-# The environment variable that names the control period's pass of a call that names none:
-# "compiled" (XLA, `engines/compiled.py`; the default) or "numpy" (the reference).
-PASS_VARIABLE = "MJX_PEG_CONTROL_PASS"
-PASSES = ("compiled", "numpy")
 
 # One finished trial.
 RESULT_DTYPE = np.dtype(
@@ -77,7 +70,7 @@ RESULT_DTYPE = np.dtype(
 )
 
 
-# The stages a profile hook sees (`run_in_threads(profile=...)`), in the order of a period.
+# The stages a profile hook sees (`threaded.run_in_threads(profile=...)`), in the order of a period.
 PROFILE_STAGES = {
     "measure": "the bound fields of the live rows gathered (`Sims.measure`)",
     "ends": "the end tests (`period.ends`) and the ended trials' results (`period.result`)",
@@ -389,61 +382,6 @@ class Lane:
                 sims.give_sims(scene_sims)
 
 
-def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
-              observer=None, profile=None, compiled: bool = False) -> None:  # fmt: skip
-    """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process;
-    compiled: their periods compiled (`engines/compiled.py`), else in NumPy.
-
-    The simulations of this call's scenes are kept for the next call, the others dropped.
-    """
-    count: dict[tuple, int] = {}
-    for index in range(len(specs)):
-        key = sims.scene_key(specs, index)
-        count[key] = count.get(key, 0) + 1
-    nsim = {key: min(slots, c) for key, c in count.items()}
-    kind_of_lane = Lane
-    if compiled:
-        from mjx_peg.engines.compiled import CompiledLane as kind_of_lane
-    lanes = [kind_of_lane(specs, params, config, slots, nsim, kind, profile)
-             for _ in range(threads)]  # fmt: skip
-    errors: list[BaseException] = []
-
-    def work(lane, report=False):
-        try:
-            lane.run(source, observer, report)
-        except BaseException as exc:  # re-raised in the caller's thread
-            errors.append(exc)
-            source.stop()
-
-    try:
-        if threads == 1:
-            work(lanes[0], report=True)
-        else:
-            pool = [threading.Thread(target=work, args=(lane,), daemon=True) for lane in lanes]
-            for t in pool:
-                t.start()
-            for t in pool:
-                while t.is_alive():
-                    t.join(timeout=0.05)
-                    source.flush()
-    except BaseException:  # KeyboardInterrupt: stop the lanes at their next period
-        source.stop()
-        raise
-    source.flush()
-    sims.keep_sims(set(count))
-    if errors:
-        raise errors[0]
-    interrupt.check()  # the lanes stopped early: their results are incomplete
-
-
-def default_compiled() -> bool:
-    """Whether a call that names no pass runs compiled (PASS_VARIABLE, default compiled)."""
-    value = os.environ.get(PASS_VARIABLE, "compiled")
-    if value not in PASSES:
-        raise UsageError(f"{PASS_VARIABLE} must be one of {', '.join(PASSES)}, got {value!r}")
-    return value == "compiled"
-
-
 def count(name: str, value, default: int) -> int:
     """`value` as a positive integer option called `name`, `default` for None."""
     if value is None:
@@ -451,35 +389,3 @@ def count(name: str, value, default: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise UsageError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
-
-
-def run_in_threads(
-    specs: TrialSpec,
-    params: ControllerParams,
-    config: TrialConfig,
-    threads: int | None = None,
-    slots_per_thread: int | None = None,
-    progress: Callable[[int], None] | None = None,
-    observer: Callable | None = None,
-    batch_threads: int | None = None,
-    persistent: bool | None = None,
-    profile: Callable[[str, float], None] | None = None,
-    compiled: bool | None = None,
-) -> TrialResult:
-    """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_on_cpu`' options;
-    params batched and validated)."""
-    n = len(specs)
-    if observer is not None and threads not in (None, 1):
-        raise UsageError("an observer runs in the lane's thread: it needs threads=1")
-    default = 1 if observer is not None else cores()
-    threads = min(count("threads", threads, default), n)
-    batch_threads = count("batch_threads", batch_threads, 1)
-    slots = count("slots_per_thread", slots_per_thread, 0) or max(
-        1, min(SLOTS_PER_THREAD, -(-n // max(threads, 1)))
-    )
-    queue = Queue(n, progress)
-    kind = (batch_threads, None if persistent is None else bool(persistent))
-    if n:
-        run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile,
-                  default_compiled() if compiled is None else bool(compiled))  # fmt: skip
-    return to_result(queue.records)

@@ -1,7 +1,7 @@
 """The CPU engine: C MuJoCo stepped by its own thread pool (`mujoco.batch`), the trial's periods
 batched in NumPy over every live trial at once (`engines/lanes.py`, `engines/period.py`).
 
-`run_on_cpu` runs the trials in lanes of this process (threads, `lanes.run_in_threads`), in
+`run_on_cpu` runs the trials in lanes of this process (`threaded.run_in_threads`), in
 worker processes (`processes.run_in_processes`) or on a Ray cluster (`ray_pool.run_on_cluster`);
 all three give the same results, bit for bit.
 """
@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mjx_peg.engines import lanes
+from mjx_peg.engines import lanes, threaded
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.params import ControllerParams
@@ -62,7 +62,7 @@ def run_on_cpu(
     compiled period").
     """
     if compiled is None:  # resolved here: workers and cluster nodes run this call's pass
-        compiled = lanes.default_compiled()
+        compiled = threaded.default_compiled()
     elif not isinstance(compiled, (bool, np.bool_)):
         raise UsageError(f"compiled must be True or False, got {compiled!r}")
     if ray is not None or processes is not None:  # lanes elsewhere: bad values are one error
@@ -92,7 +92,7 @@ def run_on_cpu(
             slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
             compiled=compiled,
         )  # fmt: skip
-    return lanes.run_in_threads(
+    return threaded.run_in_threads(
         specs, params, config, threads=threads, slots_per_thread=slots_per_thread,
         progress=progress, observer=observer, batch_threads=batch_threads, persistent=persistent,
         profile=profile, compiled=compiled,

@@ -147,20 +147,3 @@ def test_a_compiled_lane_leaves_jax_in_float32_and_serves_observers():
     steps = [s for s, _ in seen[True]]
     assert steps == [s for s, _ in seen[False]] == list(range(len(steps)))
     np.testing.assert_allclose(seen[True][-1][1], seen[False][-1][1], atol=1e-6)
-
-
-def test_the_pass_is_named_by_the_call_or_the_environment(monkeypatch):
-    """compiled=True/False, or MJX_PEG_CONTROL_PASS (compiled by default); anything else is one
-    clear error before a trial runs."""
-    from mjx_peg.engines import lanes
-    from mjx_peg.errors import UsageError
-
-    with pytest.raises(UsageError, match="compiled must be True or False"):
-        cpu_engine.run_on_cpu(_specs(1, 0), _params(1), CONFIG, compiled="yes")
-    monkeypatch.setenv(lanes.PASS_VARIABLE, "fast")
-    with pytest.raises(UsageError, match="MJX_PEG_CONTROL_PASS must be one of compiled, numpy"):
-        cpu_engine.run_on_cpu(_specs(1, 0), _params(1), CONFIG)
-    monkeypatch.delenv(lanes.PASS_VARIABLE)
-    assert lanes.default_compiled()
-    monkeypatch.setenv(lanes.PASS_VARIABLE, "numpy")
-    assert not lanes.default_compiled()
