@@ -1,10 +1,10 @@
 """Run trials on either physics engine: `run_trials(specs, params, engine=...)`.
 
-`mujoco`: C MuJoCo on MuJoCo's batched thread pool (`mujoco.batch`), each control period's pass
-over the live trials compiled by XLA on the CPU, or in NumPy (the default without an
-accelerator). `mjx`: the whole trial jitted and vmapped in MJX (GPUs/TPUs). `auto` picks `mjx`
-when JAX sees an accelerator. The engines are imported lazily: the CPU engine imports JAX only
-for its compiled pass.
+`mujoco` (the default without an accelerator): C MuJoCo on MuJoCo's batched thread pool
+(`mujoco.batch`), each control period's pass over the live trials compiled by XLA on the CPU
+(the default) or in NumPy (`compiled=False`). `mjx`: the whole trial jitted and vmapped in MJX
+(GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator. The engines are imported lazily:
+the CPU engine imports JAX only for its compiled pass.
 """
 
 from __future__ import annotations

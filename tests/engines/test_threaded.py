@@ -27,6 +27,23 @@ def test_an_observer_needs_one_thread():
                                 observer=lambda *a: None)  # fmt: skip
 
 
+def test_a_call_that_names_no_pass_runs_the_compiled_one_end_to_end(monkeypatch):
+    """Without MJX_PEG_CONTROL_PASS, run_trials' lanes are compiled (`compiled.CompiledLane`),
+    its results those of compiled=True bit for bit."""
+    from mjx_peg.engines import run_trials
+    from mjx_peg.engines.compiled import CompiledLane
+
+    monkeypatch.delenv(threaded.PASS_VARIABLE, raising=False)
+    specs, params, lanes_seen = _specs(2, 3), _params(2), set()
+    seen = lambda lane, rows, wrench: lanes_seen.add(type(lane))  # noqa: E731
+    default = run_trials(specs, params, "mujoco", CONFIG, threads=1, observer=seen)
+    assert lanes_seen == {CompiledLane}
+    compiled = cpu_engine.run_on_cpu(specs, params, CONFIG, threads=1, compiled=True)
+    assert default.steps.min() > 100  # the trials ran
+    for name, value in compiled.to_arrays().items():
+        np.testing.assert_array_equal(getattr(default, name), value, err_msg=name)
+
+
 def test_the_pass_is_named_by_the_call_or_the_environment(monkeypatch):
     """compiled=True/False, or MJX_PEG_CONTROL_PASS (compiled by default); anything else is one
     clear error before a trial runs."""
