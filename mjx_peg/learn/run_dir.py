@@ -42,14 +42,19 @@ METRICS_COLUMNS = (
     "entropy_loss",
     "kl",
     "policy_std",
+    "learning_rate",
 )
 TRIALS_COLUMNS = ("trial", "return", "success", "time_s")
+# eval.csv: the policy's mean on the held-out trials (TrainConfig.eval_every)
+EVAL_COLUMNS = ("iteration", "trials", "success_rate", "mean_return", "time_to_complete_s",
+                "protective_stop_rate")  # fmt: skip
 # metrics.csv columns added after runs were made, each after another: (name, after)
 _ADDED_METRICS = (
     ("settled_rate", "unstable_rate"),
     ("protective_stop_rate", "settled_rate"),
     ("peak_force_median_n", "protective_stop_rate"),
     ("chatter_median_n", "peak_force_median_n"),
+    ("learning_rate", "policy_std"),
 )
 KEEP_CHECKPOINTS = 3
 
@@ -71,6 +76,8 @@ class RunDir:
         self.policy_path = self.path / POLICY_FILE
         self.manifest_path = self.path / MANIFEST_FILE
         self.curve_path = self.path / "training_curve.png"
+        self.eval_path = self.path / "eval.csv"
+        self.tensorboard_dir = self.path / "tensorboard"
         self.out = OutDir(self.path, self.config_path.name, "training run", read=_recorded)
 
     def is_finished(self) -> bool:
@@ -110,7 +117,8 @@ class RunDir:
         return Checkpoints(self.checkpoint_dir, keep=KEEP_CHECKPOINTS)
 
     def start_tables(self) -> None:
-        tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS))
+        tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS),
+                  (self.eval_path, EVAL_COLUMNS))  # fmt: skip
         for path, columns in tables:
             with open(path, "w", newline="") as f:
                 csv.writer(f).writerow(columns)
@@ -120,7 +128,12 @@ class RunDir:
         if not (self.metrics_path.is_file() and self.trials_path.is_file()):
             self.start_tables()
             return
-        for path, column in ((self.metrics_path, "trials"), (self.trials_path, "trial")):
+        if not self.eval_path.is_file():  # a run from before the held-out evaluation
+            with open(self.eval_path, "w", newline="") as f:
+                csv.writer(f).writerow(EVAL_COLUMNS)
+        tables = ((self.metrics_path, "trials"), (self.trials_path, "trial"),
+                  (self.eval_path, "trials"))  # fmt: skip
+        for path, column in tables:
             try:
                 with open(path, newline="") as f:
                     rows = list(csv.reader(f))
@@ -148,3 +161,7 @@ class RunDir:
             csv.writer(f).writerows(trial_rows)
         with open(self.metrics_path, "a", newline="") as f:
             csv.writer(f).writerow(metrics_row)
+
+    def append_eval(self, row: list) -> None:
+        with open(self.eval_path, "a", newline="") as f:
+            csv.writer(f).writerow(row)

@@ -1,7 +1,8 @@
 """The portable policy export: `policy.npz` + `manifest.json`, loaded with NumPy alone.
 
 A run directory's policy is plain arrays (`policy.npz`, read with allow_pickle=False) and a JSON
-manifest that says what they mean: schema version, observation names and normalization, layer
+manifest that says what they mean: schema version, observation layout (`observation.LAYOUTS`:
+manifests without one are `names`), its feature names and normalization, layer
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
 without a map used), the skill to run it with (its name and every constant: the skill its
@@ -11,6 +12,7 @@ truncated or inconsistent. No JAX is imported here: the real robot runs this.
 
     policy = load_policy("runs/quick")
     vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
+    obs = policy.observe(shape_id, size, hole_scale, hole_est_pos, hole_est_yaw)  # its layout
 """
 
 from __future__ import annotations
@@ -42,13 +44,15 @@ class PolicyError(UsageError):
 
 @dataclasses.dataclass(frozen=True)
 class Policy:
-    """A deterministic policy: observation -> action -> 38 physical controller numbers."""
+    """A deterministic policy: observation -> action -> 38 physical controller numbers, and the
+    contact search's 9 learned constants where it learned them (47)."""
 
     layers: tuple[tuple[np.ndarray, np.ndarray], ...]
     obs_mean: np.ndarray
     obs_std: np.ndarray
     manifest: dict
-    centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
+    centre: np.ndarray | None = None  # (38,) or (47,) the centred map's centre; None: sigmoid
+    layout: str = "names"  # its observation layout (observation.LAYOUTS)
 
     @property
     def skill(self) -> NamedSkill:
@@ -61,15 +65,30 @@ class Policy:
         return trained_skill(self.manifest.get("config", {}))
 
     def act(self, obs) -> np.ndarray:
-        """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
-        return network.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))
+        """(B, 38) unbounded action (the network's mean) for (B, n) observations."""
+        obs = np.asarray(obs)
+        width = len(observation.LAYOUTS[self.layout])
+        if obs.shape[-1:] != (width,):
+            raise UsageError(
+                f"the policy reads {width} observation numbers (its {self.layout} layout), "
+                f"got an array of shape {obs.shape}"
+            )
+        return network.mean_action(self.layers, self.obs_mean, self.obs_std, obs)
+
+    def observe(self, shape_id, size, hole_scale, hole_est_pos, hole_est_yaw) -> np.ndarray:
+        """(B, n) observations in this policy's layout (`observation.observe_part`) of (B,) parts
+        (shape ids, sizes S in m, hole scales) and their estimated holes ((B, 2) x, y; (B,) yaw)."""
+        return observation.observe_part(self.layout, np.asarray(shape_id), np.asarray(size),
+                                        np.asarray(hole_scale), np.asarray(hole_est_pos),
+                                        np.asarray(hole_est_yaw))  # fmt: skip
 
     def controller_vectors(self, specs) -> np.ndarray:
         """(B, 38) physical parameter vectors for the trials of a `TrialSpec`."""
-        return self.vectors_for(observation.observe_specs(specs))
+        return self.vectors_for(observation.observe_specs(specs, self.layout))
 
     def vectors_for(self, obs) -> np.ndarray:
-        """(B, 38) physical parameter vectors for (B, 8) observations (`observation.observe`)."""
+        """(B, 38) physical parameter vectors for (B, n) observations in this policy's layout
+        (`observe`)."""
         vectors = network.controller_vector(self.act(obs), self.centre)
         return np.asarray(vectors, dtype=np.float64)
 
@@ -79,6 +98,7 @@ def _ranges_json(ranges: params.ParamRanges, centre) -> dict:
         "k_t": list(ranges.k_t),
         "k_theta": list(ranges.k_theta),
         "compliance_bound": [list(row) for row in ranges.compliance_bound()],
+        "search": {name: list(params.SEARCH_RANGES[name]) for name in params.LEARNED_NAMES[38:]},
     }
     if centre is None:
         return {
@@ -133,9 +153,21 @@ def save_policy(
     extra: dict | None = None,
     centre=None,
     skill: NamedSkill | None = None,
+    layout: str | None = None,
 ) -> Path:
-    """Write `policy.npz` + `manifest.json` into run_dir, each atomically. `skill`: the skill to
-    run it with (default: the one `config` trained with)."""
+    """Write `policy.npz` + `manifest.json` into run_dir, each atomically; the network outputs
+    38 numbers (the controller) or 47 (and the contact search's constants). `skill`: the skill to
+    run it with (default: the one `config` trained with); `layout`: its observation layout
+    (default: the one `config` names, `TrainConfig.observation`)."""
+    size = int(np.shape(layers[-1][0])[1])
+    if size not in (params.N_PARAMS, params.N_LEARNED):
+        raise ValueError(f"a policy outputs {params.N_PARAMS} or {params.N_LEARNED} numbers")
+    layout = observation.check_layout(layout or file_versions.train_config(config)["observation"])
+    width = len(observation.LAYOUTS[layout])
+    assert np.shape(layers[0][0])[0] == width == np.size(obs_mean) == np.size(obs_std), (
+        f"a policy of the {layout} layout reads {width} numbers: its first layer and the "
+        "observation statistics must match"
+    )
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     arrays = {
@@ -149,7 +181,8 @@ def save_policy(
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
         "observation": {
-            "names": list(observation.OBS_NAMES),
+            "layout": layout,
+            "names": list(observation.LAYOUTS[layout]),
             "normalization": "(obs - obs_mean) / obs_std, arrays in policy.npz",
             "definition": "mjx_peg/policy/observation.py",
         },
@@ -159,8 +192,9 @@ def save_policy(
             "output": "mean action; deterministic policy (Brax PPO, normal distribution)",
         },
         "action": {
-            "size": params.N_PARAMS,
-            "param_names": list(params.PARAM_NAMES),
+            "size": size,
+            "param_names": list(params.LEARNED_NAMES[:size]),
+            "units": list(params.LEARNED_UNITS[:size]),
             "ranges": _ranges_json(params.DEFAULT_RANGES, centre),
         },
         "skill": (skill or trained_skill(config)).record(),
@@ -221,6 +255,7 @@ def load_policy(path) -> Policy:
     try:
         shapes = [tuple(s) for s in manifest["network"]["layers"]]
         names = manifest["observation"]["names"]
+        layout = manifest["observation"].get("layout", file_versions.MANIFEST_OBSERVATION)
         activation = manifest["network"]["activation"]
         centre = _map_centre(manifest, manifest_path)
     except (KeyError, TypeError) as e:
@@ -229,8 +264,11 @@ def load_policy(path) -> Policy:
         _run_skill(manifest)
     except (UsageError, KeyError, TypeError) as e:
         raise PolicyError(f"{manifest_path}: its skill is not readable ({e})") from None
-    if names != list(observation.OBS_NAMES):
-        raise PolicyError(f"{manifest_path} observation {names} is not {observation.OBS_NAMES}")
+    if layout not in observation.LAYOUTS:
+        raise PolicyError(f"{manifest_path}: unknown observation layout {layout!r}")
+    expected = observation.LAYOUTS[layout]
+    if names != list(expected):
+        raise PolicyError(f"{manifest_path} observation {names} is not the {layout} layout's")
     if activation != ACTIVATION:
         raise PolicyError(f"{manifest_path}: unsupported activation")
     try:
@@ -242,16 +280,27 @@ def load_policy(path) -> Policy:
         raise PolicyError(
             f"{npz_path} lacks the array {e} that {manifest_path.name} names"
         ) from None
-    width = observation.OBS_SIZE
+    width = len(expected)
+    if shapes and shapes[0][0] != width:
+        raise PolicyError(
+            f"{npz_path}: the network reads {shapes[0][0]} numbers, the {layout} observation "
+            f"layout {width}"
+        )
     for i, ((kernel, bias), shape) in enumerate(zip(layers, shapes, strict=True)):
         if kernel.shape != shape or bias.shape != (shape[1],) or shape[0] != width:
             raise PolicyError(f"{npz_path}: layer {i} has shape {kernel.shape}, expected {shape}")
         width = shape[1]
-    if width != params.N_PARAMS:
-        raise PolicyError(f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS}")
-    if obs_mean.shape != (observation.OBS_SIZE,) or obs_std.shape != (observation.OBS_SIZE,):
+    if width not in (params.N_PARAMS, params.N_LEARNED):
+        raise PolicyError(
+            f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS} or "
+            f"{params.N_LEARNED}"
+        )
+    if centre is not None and centre.shape != (width,):
+        raise PolicyError(f"{manifest_path}: the map's centre has {centre.size} numbers, the "
+                          f"network outputs {width}")  # fmt: skip
+    if obs_mean.shape != (len(expected),) or obs_std.shape != (len(expected),):
         raise PolicyError(f"{npz_path}: observation normalization has the wrong shape")
     everything = [obs_mean, obs_std] + [w for layer in layers for w in layer]
     if not all(np.all(np.isfinite(a)) for a in everything) or np.any(obs_std <= 0):
         raise PolicyError(f"{npz_path} holds NaN, infinite or non-positive normalization values")
-    return Policy(layers, obs_mean, obs_std, manifest, centre)
+    return Policy(layers, obs_mean, obs_std, manifest, centre, layout)

@@ -37,7 +37,8 @@ from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
-from mjx_peg.world.task import TaskConfig, sample_trials
+from mjx_peg.world.parts import fit_text
+from mjx_peg.world.task import HOLE_SCALE_HELP, TaskConfig, parse_hole_scale, sample_trials
 
 PROG = "python -m mjx_peg.robot"
 PHYSICS_HZ = 1.0 / constants.TIMESTEP
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--shape", choices=constants.SHAPES, default="circle")
     p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="size S (default 50)")
+    p.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=2.0, help="± linear error range")
     p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0, help="± angular error range")
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
@@ -155,7 +157,8 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
 def _setup(args):
     steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
-                                  grasp_model=args.grasp_model)  # fmt: skip
+                                  grasp_model=args.grasp_model,
+                                  hole_scale=parse_hole_scale(args.hole_scale))  # fmt: skip
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     args.policy = resolve_policy(args.policy)
@@ -255,9 +258,11 @@ def main(argv=None) -> int:
         if rows
         else "-"
     )
+    fit = fit_text(args.shape, task.hole_scale_range(args.shape)[0])
     print(
         f"{args.policy} on the simulated arm at {PHYSICS_HZ / steps:g} Hz commands, "
-        f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
+        f"{args.shape} {args.size:g} mm{fit}, "
+        f"±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
         f"{int(ok.sum())}/{len(rows)} inserted ({100 * ok.mean():.1f} %), median time {median}, "
         f"{stops} stops ({protective} protective, {settled} settled); {contact}; "
         f"{time.perf_counter() - start:.0f} s wall; wrote {results}"

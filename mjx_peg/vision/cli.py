@@ -73,8 +73,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--condition", choices=("nominal", "dark", "camera-off"), default="nominal")
     r.add_argument("--width", type=PIXELS, default=1280, help="default 1280")
     r.add_argument("--height", type=PIXELS, default=960, help="default 960")
-    r.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
-    r.add_argument("--sizes", default="25,50,60", help="sizes S in mm, of 25, 50, 60")
+    r.add_argument(
+        "--shapes",
+        default="circle,square,triangle",
+        help="comma-separated, of circle, square, triangle, hexagon, rectangle (the localizer "
+        "learns the first three)",
+    )
+    r.add_argument(
+        "--sizes",
+        default="25,50,60",
+        help="sizes S in mm, each in 10..80 (the localizer learns 25, 50, 60)",
+    )
     _force(r, "an earlier split (any options)")
 
     t = sub.add_parser("train", help="train the localizer (CPU), export npz + json")
@@ -98,6 +107,11 @@ def build_parser() -> argparse.ArgumentParser:
     lo.add_argument("image", type=path, help="PNG or JPEG from the calibrated camera")
     lo.add_argument("--camera", type=path, required=True, help="calibration JSON (camera.py)")
     lo.add_argument("--model", **_MODEL)
+    lo.add_argument(
+        "--shape",
+        help="the part's shape, when known: its yaw is read at that shape's symmetry; a shape "
+        "the localizer cannot localize is refused (default: the shape it classifies)",
+    )
 
     a = sub.add_parser("act", help="vision to action: trials with the localizer's estimates")
     a.add_argument("--model", **_MODEL)
@@ -143,7 +157,7 @@ def _render(args) -> str:
         try:
             sizes.append(float(s))
         except ValueError:
-            raise UsageError(f"--sizes must be numbers of mm (of 25, 50, 60), got {s!r}") from None
+            raise UsageError(f"--sizes must be numbers of mm (10..80), got {s!r}") from None
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
@@ -163,13 +177,13 @@ def _render(args) -> str:
 def _train(args) -> str:
     import dataclasses
 
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import check_trainable, split_config
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
     outdir.check_apart(args.out, {"--data": args.data, "--val": args.val})
-    split_config(args.data)  # a split, before any work
+    check_trainable(split_config(args.data), "--data")  # a split of its classes, before any work
     if args.val is not None:
-        split_config(args.val)
+        check_trainable(split_config(args.val), "--val")
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
@@ -210,21 +224,24 @@ def _localize(args) -> str:
     from mjx_peg.vision.dataset import read_png
     from mjx_peg.vision.localizer import Localizer
 
+    loc = Localizer.load(args.model)
+    if args.shape is not None:
+        loc.check_shape(args.shape)
     image = read_png(args.image)
     calib = CameraCalibration.load(args.camera)
-    loc = Localizer.load(args.model)
-    return json.dumps(loc.localize(image, calib).to_json(), indent=2)
+    return json.dumps(loc.localize(image, calib, shape=args.shape).to_json(), indent=2)
 
 
 def _act(args) -> str:
     from mjx_peg.vision.forward import SIZES_MM
+    from mjx_peg.vision.localizer import Localizer
 
     shapes = _csv(args.shapes)
-    for s in shapes:
-        if s not in ("circle", "square", "triangle"):
-            raise UsageError(f"unknown shape {s!r}: choose from circle, square, triangle")
     if not shapes or len(set(shapes)) != len(shapes):
-        raise UsageError("--shapes must name distinct shapes of circle, square, triangle")
+        raise UsageError("--shapes must name distinct shapes")
+    loc = Localizer.load(args.model)
+    for s in shapes:
+        loc.check_shape(s, "--shapes")
     if args.size not in SIZES_MM:
         raise UsageError(
             f"--size must be a size the localizer knows (25, 50, 60 mm), got {args.size:g}"
@@ -234,10 +251,8 @@ def _act(args) -> str:
     args.policy = resolve_policy(args.policy)
     outdir.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
-    from mjx_peg.vision.localizer import Localizer
     from mjx_peg.world import mujoco_log
 
-    loc = Localizer.load(args.model)
     outdir.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, _note)
     outdir.prepare_dir(args.out)
     mujoco_log.send_to(args.out)

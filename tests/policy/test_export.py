@@ -1,6 +1,6 @@
 """policy/export.py: a saved policy loads as it was saved and acts as its network computes; the
-manifest says how actions become numbers and which skill runs it; a damaged policy is one line
-naming its run."""
+manifest says how actions become numbers, which skill runs it and which observation layout it
+reads (older manifests the names layout); a damaged policy is one line naming its run."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from mjx_peg.policy import network
+from mjx_peg.policy import network, observation
 from mjx_peg.policy.export import (
     MANIFEST_FILE,
     POLICY_FILE,
@@ -22,14 +22,16 @@ from mjx_peg.policy.export import (
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, controller_from_action, vector_from_controller
 from mjx_peg.skill.search import SKILLS, NamedSkill, named_skill
+from mjx_peg.world.constants import SHAPES
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 SPECS = sample_trials(TaskConfig(shapes=("circle", "square"), linear_error=0.002), 3, 3)
 
 
-def _layers(seed: int = 0, hidden: int = 16):
+def _layers(width: int = 8, seed: int = 0, hidden: int = 16):
+    """A network of `width` observation numbers, one hidden layer, 38 outputs."""
     rng = np.random.default_rng(seed)
-    return [(rng.normal(size=(8, hidden)), rng.normal(size=hidden)),
+    return [(rng.normal(size=(width, hidden)), rng.normal(size=hidden)),
             (0.3 * rng.normal(size=(hidden, 38)), 0.1 * rng.normal(size=38))]  # fmt: skip
 
 
@@ -184,3 +186,58 @@ def test_a_path_that_is_no_policy_is_one_line(tmp_path):
         load_policy(tmp_path / "nowhere")
     with pytest.raises(PolicyError, match="holds no policy.npz: not a run directory"):
         load_policy(tmp_path)
+
+
+@pytest.mark.parametrize("layout", sorted(observation.LAYOUTS))
+def test_a_policy_reads_the_layout_it_was_trained_with(tmp_path, layout):
+    width = len(observation.LAYOUTS[layout])
+    save_policy(tmp_path, _layers(width), np.full(width, 0.1), np.full(width, 2.0),
+                {"observation": layout})  # fmt: skip
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["observation"]["layout"] == layout
+    assert manifest["observation"]["names"] == list(observation.LAYOUTS[layout])
+    policy = load_policy(tmp_path)
+    assert policy.layout == layout
+    specs = sample_trials(TaskConfig(shapes=SHAPES, hole_scale="tight"), 2, 20)
+    obs = observation.observe_specs(specs, layout)
+    expected = network.controller_vector(
+        network.mean_action(policy.layers, policy.obs_mean, policy.obs_std, obs), policy.centre
+    )
+    np.testing.assert_array_equal(policy.controller_vectors(specs), expected)
+    part = (specs.shape_id, specs.size, specs.hole_scale, specs.hole_est_pos, specs.hole_est_yaw)
+    np.testing.assert_array_equal(policy.observe(*part), obs)
+    other = "names" if layout == "geometry" else "geometry"
+    wrong = observation.observe_specs(specs, other)
+    with pytest.raises(ValueError, match=f"reads {width} observation numbers \\(its {layout}"):
+        policy.vectors_for(wrong)
+
+
+def test_a_training_config_names_the_layout_and_older_ones_were_names(tmp_path):
+    save_policy(tmp_path / "new", _layers(9), np.zeros(9), np.ones(9), {"observation": "geometry"})
+    save_policy(tmp_path / "old", _layers(8), np.zeros(8), np.ones(8), {})
+    assert load_policy(tmp_path / "new").layout == "geometry"
+    assert load_policy(tmp_path / "old").layout == "names"
+    path = tmp_path / "old" / "manifest.json"
+    manifest = json.loads(path.read_text())
+    del manifest["observation"]["layout"]  # a manifest written before the layouts
+    path.write_text(json.dumps(manifest))
+    assert load_policy(tmp_path / "old").layout == "names"
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda m: m["observation"].update(layout="pixels"), "unknown observation layout"),
+        (lambda m: m["observation"].update(layout="geometry"), "is not the geometry layout's"),
+        (lambda m: m["observation"]["names"].pop(), "is not the names layout's"),
+    ],
+)
+def test_a_manifest_whose_observation_does_not_fit_is_one_policy_error(tmp_path, change, message):
+    save_policy(tmp_path, _layers(8), np.zeros(8), np.ones(8), {"observation": "names"})
+    path = tmp_path / "manifest.json"
+    manifest = json.loads(path.read_text())
+    change(manifest)
+    path.write_text(json.dumps(manifest))
+    with pytest.raises(PolicyError, match=message) as error:
+        load_policy(tmp_path)
+    assert len(str(error.value).splitlines()) == 1

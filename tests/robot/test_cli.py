@@ -57,7 +57,8 @@ def test_a_command_rate_the_physics_cannot_give_is_refused(hz, limit, message):
         (["--policy", "no/such/run"], "--policy no/such/run: no such run directory"),
         (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
         (["--time-limit", "nan"], "--time-limit must be a number in [0.01, 600] s, got 'nan'"),
-        (["--shape", "hexagon"], "argument --shape: invalid choice"),
+        (["--shape", "octagon"], "argument --shape: invalid choice"),
+        (["--hole-scale", "loose"], "--hole-scale must be paper or tight or a number in [1.01,"),
     ],
 )
 def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
