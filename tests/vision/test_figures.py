@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from mjx_peg.vision.figures import gallery_png, hole_outline
-from mjx_peg.world import constants
+from mjx_peg.world import constants, parts
 from mjx_peg.world.render import save_png
 
 
@@ -51,3 +51,11 @@ def test_the_gallery_is_a_paletted_png_of_its_size(tmp_path):
         assert image.size == (1024, 408)  # 4 columns x 2 rows of 3.2 x 2.55 in at 80 dpi
     names = {p.name for p in tmp_path.iterdir()}
     assert names == {f"{k}.png" for k in range(5)} | {"gallery.png"}  # no partial file left
+
+
+@pytest.mark.parametrize("shape", constants.SHAPES)
+def test_the_drawn_outline_is_the_part_hole(shape):
+    corners = parts.hole_corners(shape, 0.04, 1.02)
+    outline = hole_outline(shape, 0.04, 0.5, -0.1, 0.0, 1.02)
+    np.testing.assert_allclose(outline[:-1, :2], corners + np.array([0.5, -0.1]), atol=1e-15)
+    np.testing.assert_allclose(outline[-1], outline[0])
