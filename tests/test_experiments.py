@@ -166,7 +166,7 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
         engine.run_on_cpu(specs, params, config, processes=1, profile=profile)
 
 
-# experiments/engines_agree.py runs in tests/engines/test_engines.py::test_engines_agree (one
+# experiments/engines_agree.py runs in tests/engines/test_mjx.py::test_engines_agree (one
 # MJX compile for the agreement check and the script's smoke test).
 
 

@@ -48,3 +48,24 @@ def run_train(args, **kwargs):
 def train_py():
     """Runs `python train.py ARGS` (a subprocess.CompletedProcess with its output)."""
     return run_train
+
+
+def read_tensorboard_scalars(folder: Path) -> dict[str, list[tuple[int, float]]]:
+    """{tag: [(step, value), ...]} of the one TensorBoard event file in `folder`."""
+    from tensorboardX.proto.event_pb2 import Event
+
+    (events,) = folder.glob("events.out.tfevents.*")
+    data, tags = events.read_bytes(), {}
+    while data:  # TFRecord framing: length (8 bytes), its CRC (4), the record, its CRC (4)
+        n = int.from_bytes(data[:8], "little")
+        event = Event.FromString(data[12 : 12 + n])
+        for value in event.summary.value:
+            tags.setdefault(value.tag, []).append((event.step, value.simple_value))
+        data = data[16 + n :]
+    return tags
+
+
+@pytest.fixture
+def tensorboard_scalars():
+    """Reads a folder's TensorBoard scalars: {tag: [(step, value), ...]}."""
+    return read_tensorboard_scalars

@@ -183,22 +183,15 @@ def test_distributed_two_local_processes(tmp_path, tiny_args):
     assert load_policy(out).manifest["finished"]
 
 
-def test_a_run_evaluates_its_mean_on_held_out_trials_and_writes_tensorboard(tmp_path, tiny_config):
+def test_a_run_evaluates_its_mean_on_held_out_trials_and_writes_tensorboard(
+    tmp_path, tiny_config, tensorboard_scalars
+):
     config = tiny_config.replace(trials=32, eval_every=1, eval_trials=4, time_limit_s=0.3)
     train(config, tmp_path / "run", progress=False, tensorboard=True)
     held = read_table(tmp_path / "run" / "eval.csv")
     assert held["iteration"] == [1.0, 2.0] and held["trials"] == [16.0, 32.0]
     assert all(0.0 <= s <= 1.0 for s in held["success_rate"])
-    (events,) = (tmp_path / "run" / "tensorboard").glob("events.out.tfevents.*")
-    from tensorboardX.proto.event_pb2 import Event
-
-    data, tags = events.read_bytes(), {}
-    while data:  # TFRecord framing: length (8 bytes), its CRC (4), the record, its CRC (4)
-        n = int.from_bytes(data[:8], "little")
-        event = Event.FromString(data[12 : 12 + n])
-        for value in event.summary.value:
-            tags.setdefault(value.tag, []).append((event.step, value.simple_value))
-        data = data[16 + n :]
+    tags = tensorboard_scalars(tmp_path / "run" / "tensorboard")
     assert [step for step, _ in tags["training/success_rate"]] == [16, 32]
     assert [step for step, _ in tags["eval/success_rate"]] == [16, 32]
     assert tags["eval/success_rate"][-1][1] == pytest.approx(held["success_rate"][-1], abs=1e-4)

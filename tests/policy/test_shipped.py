@@ -46,20 +46,6 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
     np.testing.assert_array_equal(policy.vectors_for(obs), by_path.vectors_for(obs))
 
 
-def test_a_manifest_whose_skill_does_not_read_is_one_policy_error(shelf):
-    from mjx_peg.policy.export import PolicyError
-
-    path = shelf / "mini" / "manifest.json"
-    good = json.loads(path.read_text())
-    for skill, message in (({"name": "wiggle", "constants": None}, "unknown skill 'wiggle'"),
-                           ({"name": "spiral", "constants": {"spiral_speed": -1}}, "spiral_speed"),
-                           ({"constants": None}, "'name'")):  # fmt: skip
-        path.write_text(json.dumps({**good, "skill": skill}))
-        with pytest.raises(PolicyError, match="its skill is not readable") as error:
-            load_policy(shelf / "mini")
-        assert message in str(error.value) and len(str(error.value).splitlines()) == 1
-
-
 def test_the_shipped_policies_load_and_say_how_they_were_made():
     """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
     running by default the shipped skill (`spiral`, the skill their published numbers used;

@@ -1,19 +1,13 @@
 """The UR5e adapter (`robot/ur5e.py`) against the simulated UR5e behind ur_rtde's interface: the
 same trial as on the simulated arm, units and frames, every stop within one cycle, shadow mode,
-the robot's settings, the CLI's real-arm path and its bad input."""
+the robot's settings and its model refused."""
 
 from __future__ import annotations
-
-import inspect
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.policy.export import save_policy
-from mjx_peg.robot import cli
 from mjx_peg.robot.arm_model import ControllerArmModel, MujocoArmModel
 from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, run_skill
 from mjx_peg.robot.sim_arm import SimArm
@@ -23,7 +17,6 @@ from mjx_peg.robot.ur5e import (
     UR5eArm,
     UR5eSettings,
     Workspace,
-    import_rtde,
     polyscope_version,
 )
 from mjx_peg.skill.baseline import baseline_params
@@ -219,107 +212,3 @@ def test_the_controllers_model_is_used_when_sane_and_refused_when_not():
     robot.control.getMassMatrix = lambda q, rotors: [0.0] * 36  # a version that answers zeros
     run = _run(specs, arm, sim)
     assert "diagonal" in run.stopped and run.commands == 0
-
-
-def test_the_simulated_ur5e_follows_ur_rtdes_signatures():
-    """Every method the adapter calls on the simulated robot exists in ur_rtde with that name,
-    and the simulated one accepts ur_rtde's parameters by position."""
-    rtde_control, rtde_receive, dashboard_client = import_rtde()
-    robot = SimulatedUR5e(SimArm(_specs(n=1), 0))
-    pairs = [(robot.control, rtde_control.RTDEControlInterface),
-             (robot.receive, rtde_receive.RTDEReceiveInterface),
-             (robot.dashboard, dashboard_client.DashboardClient)]  # fmt: skip
-    for fake, real in pairs:
-        for name, method in inspect.getmembers(type(fake), inspect.isfunction):
-            if name.startswith("_"):
-                continue
-            assert hasattr(real, name), f"{real.__name__} has no {name}"
-            doc = getattr(real, name).__doc__ or ""
-            wanted = re_params(doc, real.__name__, name)
-            got = list(inspect.signature(method).parameters)[1:]
-            assert len(got) >= len(wanted), (name, wanted, got)
-
-
-def re_params(doc: str, cls: str, name: str) -> list[str]:
-    """Parameter names of `name` from a pybind11 signature line 'name(self: cls, a: T = v, ...)'."""
-    first = next(line for line in doc.splitlines() if line.strip().startswith(f"{name}("))
-    inner = first[first.index("(") + 1 : first.rindex(")")]
-    params = [p.split(":")[0].strip() for p in inner.split(", ") if ":" in p]
-    return [p for p in params if p != "self"]
-
-
-def test_cli_rehearsal_inserts_and_writes_its_log(tmp_path, capsys):
-    argv = ["--rehearse", "--hole", "450,-120,30", "--shape", "square", "--time-limit", "5",
-            "--out", str(tmp_path)]  # fmt: skip
-    assert cli.main(argv) == 0
-    out = capsys.readouterr().out
-    assert "baseline on the UR5e at sim" in out and "inserted at" in out
-    rows = (tmp_path / "ur5e_run.csv").read_text().splitlines()
-    header = rows[0].split(",")
-    assert header[:3] == ["t_s", "period_ms", "work_ms"] and header[-1] == "sent"
-    assert "wrench_fz" in header and "goal_z" in header and "tau6" in header
-    assert 200 < len(rows) - 1 < 2500
-    assert (tmp_path / "ur5e_run.png").stat().st_size > 10_000
-    assert cli.main(argv) == 2  # an earlier run is kept without --force
-    assert "--force" in capsys.readouterr().err
-
-
-def test_cli_dry_run_prints_the_plan_and_connects_to_nothing(capsys):
-    assert cli.main(["--dry-run", "--hole", "450,-120,30", "--shape", "circle"]) == 0
-    out = capsys.readouterr().out
-    assert "move (moveJ) to the start (450.0, -120.0, 140.0) mm" in out
-    assert "t =  2.00 s  tcp (450.0, -120.0, -0.0) mm" in out or "-120.0, 0.0) mm" in out
-    assert "nothing was connected or moved" in out
-
-
-@pytest.mark.parametrize(
-    "argv, message",
-    [
-        (
-            ["--robot-ip", "127.0.0.1", "--hole", "450,-120,30"],
-            "cannot connect to a UR5e at 127.0.0.1",
-        ),
-        (["--robot-ip", "not an ip!", "--hole", "1,2,3"], "not an IP address or host name"),
-        (["--robot-ip", "127.0.0.1"], "need --hole X,Y,YAW"),
-        (["--dry-run", "--hole", "450,-120"], "--hole must be X,Y,YAW"),
-        (["--dry-run", "--hole", "2000,0,0"], "out of the UR5e's reach"),
-        (["--shadow", "--hole", "450,0,0"], "need --robot-ip, --rehearse or --dry-run"),
-        (["--rehearse", "--robot-ip", "127.0.0.1", "--hole", "450,0,0"], "drop --robot-ip"),
-        (["--robot-ip", "127.0.0.1", "--hole", "450,0,0", "--command-hz", "125"], "500 Hz only"),
-    ],
-)
-def test_cli_real_arm_bad_input_is_one_line(argv, message, tmp_path, capsys):
-    code = cli.main([*argv, "--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and message in err and len(err.splitlines()) == 1, err
-    assert not (tmp_path / "out" / "ur5e_run.csv").exists()
-
-
-def test_cli_refuses_a_policy_trained_on_other_shapes(tmp_path, capsys):
-    rng = np.random.default_rng(0)
-    layers = [(rng.normal(size=(8, 16)) * 0.3, np.zeros(16)),
-              (rng.normal(size=(16, 38)) * 0.3, np.zeros(38))]  # fmt: skip
-    config = {"task": {"shapes": ["circle", "square"]}}
-    save_policy(tmp_path / "p", layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8),
-                config=config)  # fmt: skip
-    argv = ["--dry-run", "--policy", str(tmp_path / "p"), "--hole", "450,0,0"]
-    assert cli.main([*argv, "--shape", "triangle"]) == 2
-    assert "was trained on circle, square, not triangle" in capsys.readouterr().err
-    assert cli.main([*argv, "--shape", "circle"]) == 0
-
-
-def test_without_ur_rtde_the_package_imports_and_the_cli_says_how_to_install(tmp_path):
-    code = (
-        "import sys\n"
-        "for m in ('rtde_control', 'rtde_receive', 'dashboard_client'):\n"
-        "    sys.modules[m] = None\n"
-        "import mjx_peg.robot.ur5e, mjx_peg.robot.runtime\n"
-        "from mjx_peg.robot import cli\n"
-        "argv = ['--robot-ip', '127.0.0.1', '--hole', '450,0,0', '--out', sys.argv[1]]\n"
-        "sys.exit(cli.main(argv))\n"
-    )
-    done = subprocess.run(
-        [sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True
-    )
-    assert done.returncode == 2, done.stderr
-    assert 'pip install -e ".[robot]"' in done.stderr and len(done.stderr.splitlines()) == 1

@@ -155,3 +155,20 @@ def test_vision_render_resumes_refuses_and_moves_aside_with_force(tmp_path, caps
     assert cli.main([*argv[:2], str(mine), *argv[3:], "--force"]) == 2
     assert "--force replaces only a vision split" in capsys.readouterr().err
     assert _files(mine) == {"notes.txt": b"x\n"}
+
+
+def test_the_parts_the_shipped_localizer_cannot_localize_are_one_line(tmp_path, capsys):
+    """`localize --shape` and `act --shapes` of a part the shipped localizer refuses: one line
+    naming the flag, nothing written."""
+    calib = CameraCalibration.from_mujoco((0.35, 0, 1.3), np.eye(3), 45.0, 64, 48)
+    camera = calib.save(tmp_path / "camera.json")
+    from PIL import Image
+
+    Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(tmp_path / "img.png")
+    err = _one_line_error(capsys, ["localize", str(tmp_path / "img.png"), "--camera",
+                                   str(camera), "--shape", "hexagon"])  # fmt: skip
+    assert "--shape hexagon: this localizer cannot localize hexagon holes" in err
+    err = _one_line_error(capsys, ["act", "--out", str(tmp_path / "a"), "--shapes",
+                                   "circle,rectangle"])  # fmt: skip
+    assert "--shapes rectangle: this localizer cannot localize rectangle holes" in err
+    assert not (tmp_path / "a").exists()

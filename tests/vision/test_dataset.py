@@ -1,5 +1,6 @@
-"""vision/dataset.py: labels against the rendered geometry, renders deterministic by seed.
-Small renders (320 x 240)."""
+"""vision/dataset.py: labels against the rendered geometry, renders deterministic by seed, the
+family's new parts rendered with labels of no class, the splits' shapes and sizes. Small renders
+(320 x 240)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from mjx_peg.errors import UsageError
 from mjx_peg.vision import dataset
 from mjx_peg.vision.camera import CameraCalibration
+from mjx_peg.vision.figures import hole_outline
 from mjx_peg.world import constants
 
 PIXEL_TOL = 1.0  # px: a label's projected hole centre vs the rendered marker
@@ -69,3 +72,40 @@ def test_renders_are_deterministic_by_seed(tmp_path):
     ).read_bytes()
     other = dataset.SplitConfig(count=1, seed=6, **SMALL)
     assert dataset.draw(other, 0) != dataset.draw(config, 0)
+
+
+@pytest.mark.parametrize("shape", ["hexagon", "rectangle"])
+def test_new_parts_render_with_their_hole_and_labels_without_a_class(shape):
+    """A new part at a size the localizer never learned, right under the camera: through its
+    hole's outline (drawn through the true camera) the table shows within, the board without;
+    its label has no shape or size class for the localizer to learn."""
+    config = dataset.SplitConfig(count=1, seed=3, width=640, height=480, shapes=(shape,),
+                                 sizes_mm=(80.0,))  # fmt: skip
+    board, view = dataset.draw(config, 0)
+    board.update(x=0.35, y=0.0)  # under the bird's-eye camera: the walls seen edge-on
+    view["distractors"] = []
+    view["board_look"].update(rgb=[0.1, 0.1, 0.9], texture="plain")
+    view["table"].update(rgb=[0.9, 0.1, 0.1], texture="plain")
+    with dataset.Renderer(640, 480) as renderer:
+        image = renderer.raw(board, view).astype(float)
+    label = dataset.make_label(board, view)
+    assert (label["board"]["shape"], label["board"]["size"]) == (shape, 0.08)
+    assert label["shape_class"] is None and label["size_class"] is None
+    true = CameraCalibration.from_json(view["camera_true"])
+    centre = np.array([board["x"], board["y"], constants.HOLE_DEPTH])
+    outline = hole_outline(shape, board["size"], board["x"], board["y"], board["yaw"])[:-1]
+    for scale, table in ((0.85, True), (1.15, False)):
+        for u, v in true.project(centre + scale * (outline - centre)):
+            red, _, blue = image[int(round(v)), int(round(u))]
+            assert (red > blue) == table, (scale, u, v)
+    with pytest.raises(UsageError, match=f"--data renders {shape}, 80 mm: the localizer learns"):
+        dataset.check_trainable(config, "--data")
+
+
+def test_splits_take_every_shape_and_sizes_10_to_80_mm():
+    dataset.SplitConfig(count=1, seed=0, shapes=constants.SHAPES, sizes_mm=(10.0, 80.0))
+    with pytest.raises(UsageError, match=r"sizes must lie in \[10, 80\] mm"):
+        dataset.SplitConfig(count=1, seed=0, sizes_mm=(90.0,))
+    with pytest.raises(UsageError, match="shapes must be some of"):
+        dataset.SplitConfig(count=1, seed=0, shapes=("octagon",))
+    assert dataset.SplitConfig(count=1, seed=0).shapes == constants.PAPER_SHAPES
