@@ -1,18 +1,21 @@
-"""Trial throughput of each engine, against the ceiling of bare mj_step on the same states.
+"""Trial throughput of each engine, against the physics alone on the engine's own states.
 
-    python benchmarks/trials.py [--trials 1000] [--threads N] [--mjx-trials 8] [--write]
+    python benchmarks/trials.py [--trials 1000] [--threads N] [--passes numpy,compiled]
+        [--shapes square] [--skill paper] [--mjx-trials 8] [--write]
 
-Runs the hand-tuned baseline on `--trials` square 50 mm trials at 3 mm / 4 deg on the mujoco
-engine with 1 thread (lane) and with `--threads` (default: every core), every failure to the
-time limit, and reports physics steps/s and trials/s. In the same run, two ceilings: the states
-the engine visited (a snapshot every `--replay-every` steps, contacts included) replayed with
-plain `mj_step` and the recorded torques held, no controller, on as many processes as the engine
-has threads (the ratio's reference), and the same snapshots stepped by `mujoco.batch.Batch`, one
-step per call over 512 simulations at a time (the physics as the engine runs it). Then the engine
-with early ending (TrialConfig.end_settled, the default), the fixed cost of a call, and a profile
-of one lane by stage (the engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx
-engine is timed on `--mjx-trials` trials (compile time reported apart). `--write` replaces the
-"## Trial engines" section of BENCHMARKS.md.
+Runs the hand-tuned baseline on `--trials` 50 mm trials (`--shapes`, `--skill`) at 3 mm / 4 deg
+on the mujoco engine with 1 lane and with `--threads` lanes (default: every core) as threads of
+this process and as worker processes, with each control-period pass of `--passes` (the NumPy
+pass, the compiled one: `run_on_cpu(compiled=...)`), every failure to the time limit, and reports
+physics steps/s and trials/s. In the same run, two references: the states the engine visited (a
+snapshot every `--replay-every` steps, contacts included) replayed with plain `mj_step` and the
+recorded torques held, no controller, on as many processes as lanes (the ceiling), and the same
+snapshots stepped by `mujoco.batch.Batch`, one step per call over `--slots` simulations at a time
+(the physics as the engine runs it: the engine's ratio to it is the share of the wall time that
+is physics). Then the engine with early ending (TrialConfig.end_settled, the default), the fixed
+cost of a call, and a profile of one lane by stage for each pass (the engine's `profile` hook,
+`lanes.PROFILE_STAGES`). The mjx engine is timed on `--mjx-trials` trials (compile time reported
+apart). `--write` replaces the "## Trial engines" section of BENCHMARKS.md.
 """
 
 from __future__ import annotations
@@ -33,28 +36,38 @@ from mjx_peg.engines import lanes, sims
 from mjx_peg.engines import mujoco as cpu_engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world import scene
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def time_engine(specs, params, config, threads, slots=None):
+def time_engine(specs, params, config, threads, compiled, processes=None):
     """(result, wall s, CPU s of this process: all its threads)."""
     start, cpu = time.perf_counter(), time.process_time()
-    result = cpu_engine.run_on_cpu(specs, params, config, threads=threads, slots_per_thread=slots)
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=threads, compiled=compiled,
+                                   processes=processes)  # fmt: skip
     return result, time.perf_counter() - start, time.process_time() - cpu
 
 
-def call_overhead(specs, params, threads, calls=20):
+def call_overhead(specs, params, threads, compiled, calls=20):
     """Median wall time (s) of a call running 2 trials of one step each."""
     config = TrialConfig(time_limit_s=TrialConfig().timestep)
     two, times = specs.take(np.arange(2)), []
+    cpu_engine.run_on_cpu(two, params, config, threads=threads, compiled=compiled)  # compiles
     for _ in range(calls):
         start = time.perf_counter()
-        cpu_engine.run_on_cpu(two, params, config, threads=threads)
+        cpu_engine.run_on_cpu(two, params, config, threads=threads, compiled=compiled)
         times.append(time.perf_counter() - start)
     return float(np.median(times))
+
+
+def trial_model(specs, index):
+    """The model of trial `index`: its scene with its board pose, grasp and friction."""
+    m = scene.load_model(*sims.scene_key(specs, index))
+    scene.start_trial(specs, index, m, mujoco.MjData(m), scene.scene_ids(m))
+    return m
 
 
 def record_states(specs, params, config, every):
@@ -74,19 +87,15 @@ def record_states(specs, params, config, every):
 
 def _replay_part(specs, snaps, every, barrier):
     """Steps/s of bare mj_step from each snapshot for `every` steps (run in a worker process)."""
-    envs, jobs = {}, []
+    models, jobs = {}, []
     for index, state in snaps:
-        key = sims.scene_key(specs, index)
-        if key not in envs:
-            m = scene.load_model(*key)
-            envs[key] = (m, mujoco.MjData(m))
-        jobs.append((*envs[key], index, state))
+        if index not in models:
+            m = trial_model(specs, index)
+            models[index] = (m, mujoco.MjData(m))
+        jobs.append((*models[index], state))
     barrier.wait()
     start, cpu = time.perf_counter(), time.process_time()
-    for m, d, index, state in jobs:
-        scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
-        scene.set_grasp(m, *specs.grasp_error[index])
-        scene.set_friction(m, specs.friction[index])
+    for m, d, state in jobs:
         mujoco.mj_setState(m, d, state, STATE)
         for _ in range(every):
             mujoco.mj_step(m, d)
@@ -114,15 +123,10 @@ def replay_batch(specs, snaps, every, nthread, nsim=512):
     steps, seconds = 0, 0.0
     for key, jobs in by_scene.items():
         batch = sims.Sims(key, min(nsim, len(jobs)), nthread)
-        m = batch.trial_model
         for start in range(0, len(jobs), batch.nsim):
             chunk = jobs[start : start + batch.nsim]
             for sim, (index, state) in enumerate(chunk):
-                scene.set_board_pose(m, *specs.board_pos[index], specs.board_yaw[index])
-                scene.set_grasp(m, *specs.grasp_error[index])
-                scene.set_friction(m, specs.friction[index])
-                for name, values in batch.fields.items():
-                    values[sim] = getattr(m, name)
+                batch.load(sim, specs, index)  # the trial's model fields
                 batch.state[sim] = state
             ids = np.arange(len(chunk), dtype=np.int32)
             batch.forward(ids)
@@ -145,11 +149,12 @@ class StageTimes:
         self.calls[stage] += 1
 
 
-def profile_parts(specs, params, config, unprofiled_wall=None):
-    """µs per env-step by stage of one lane in this process (`run_trials(profile=...)`)."""
+def profile_parts(specs, params, config, compiled, unprofiled_wall=None):
+    """µs per env-step by stage of one lane in this process (`run_on_cpu(profile=...)`)."""
     times = StageTimes()
     start = time.perf_counter()
-    result = cpu_engine.run_on_cpu(specs, params, config, threads=1, profile=times)
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=1, profile=times,
+                                   compiled=compiled)  # fmt: skip
     wall = time.perf_counter() - start
     steps, periods = int(result.steps.sum()), times.calls["step"]
     shares = {f"{name}: {text}": times.seconds[name] for name, text in lanes.PROFILE_STAGES.items()}
@@ -160,11 +165,12 @@ def profile_parts(specs, params, config, unprofiled_wall=None):
         lines.append(f"the table's 1-thread run (no hook, best of --repeat): "
                      f"{1e6 * unprofiled_wall / steps:.2f}")  # fmt: skip
     per_period = 1e6 / max(periods, 1)  # s -> µs per period
-    numpy_pass = wall - times.seconds["step"] - times.seconds["load"]
+    control_pass = wall - times.seconds["step"] - times.seconds["load"]
     lines.append(
         f"{periods} control periods, {steps / max(periods, 1):.1f} trials each on average; "
-        f"`period.advance` {per_period * times.seconds['advance']:.0f} µs per period, the NumPy "
-        f"pass (all but the physics and loads) {per_period * numpy_pass:.0f} µs"
+        f"`period.advance` {per_period * times.seconds['advance']:.0f} µs per period, the "
+        f"pass (all but the physics and loads) {per_period * control_pass:.0f} µs, "
+        f"{100 * control_pass / wall:.0f} % of the wall time"
     )
     return lines
 
@@ -193,10 +199,16 @@ def _row(*cells):
     return "| " + " | ".join(out) + " |"
 
 
+PASSES = {"numpy": False, "compiled": True}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--trials", type=int, default=1000)
-    p.add_argument("--threads", type=int, default=cores())
+    p.add_argument("--threads", type=int, default=cores(), help="lanes of the many-lane rows")
+    p.add_argument("--passes", default="numpy,compiled", help="control-period passes to time")
+    p.add_argument("--shapes", default="square", help="comma-separated, 50 mm")
+    p.add_argument("--skill", default="paper", choices=tuple(SKILLS))
     p.add_argument("--replay-every", type=int, default=50)
     p.add_argument("--time-limit", type=float, default=10.0, help="simulated s per trial")
     p.add_argument("--mjx-trials", type=int, default=8, help="0 skips the mjx engine")
@@ -205,13 +217,23 @@ def main() -> None:
     p.add_argument("--no-profile", action="store_true", help="skip the per-stage profile")
     p.add_argument("--write", action="store_true", help="update BENCHMARKS.md")
     args = p.parse_args()
+    passes = [name.strip() for name in args.passes.split(",")]
+    if not passes or any(name not in PASSES for name in passes):
+        p.error(f"--passes: names among {', '.join(PASSES)}")
 
-    task = TaskConfig(shapes=("square",), linear_error=0.003, angular_error=np.deg2rad(4.0))
-    full = TrialConfig(time_limit_s=args.time_limit, end_settled=False)
+    task = TaskConfig(shapes=tuple(args.shapes.split(",")), linear_error=0.003,
+                      angular_error=np.deg2rad(4.0))  # fmt: skip
+    full = TrialConfig(time_limit_s=args.time_limit, end_settled=False,
+                       search=skill_config(args.skill))  # fmt: skip
     specs = sample_trials(task, 0, args.trials)
     params = as_controller_params(baseline_params(), len(specs))
     warm = specs.take(np.arange(4))
-    cpu_engine.run_on_cpu(warm, params, full, threads=args.threads)  # warm-up
+    for name in passes:  # warm-up: the compiled programs of every slot count used below
+        for threads in sorted({1, args.threads}):
+            cpu_engine.run_on_cpu(warm, params, full, threads=threads, compiled=PASSES[name],
+                                  slots_per_thread=-(-len(specs) // threads))  # fmt: skip
+        cpu_engine.run_on_cpu(warm, params, full, processes=args.threads, compiled=PASSES[name],
+                              slots_per_thread=-(-len(specs) // args.threads))  # fmt: skip
 
     snaps = record_states(specs, params, full, args.replay_every)
     replayed = f"{len(snaps)} snapshots x {args.replay_every} steps"
@@ -223,49 +245,59 @@ def main() -> None:
             replay(specs, snaps, args.replay_every, threads) for _ in range(3)
         )
         in_batch = max(replay_batch(specs, snaps, args.replay_every, threads) for _ in range(2))
-        # Best of `--repeat` too: other jobs on a shared machine come and go.
-        result, wall, cpu = min(
-            (time_engine(specs, params, full, threads) for _ in range(args.repeat)),
-            key=lambda run: run[1],
-        )
-        steps = int(result.steps.sum())
-        rate, cpu_step, walls[threads] = steps / wall, cpu / steps, wall
-        slots = min(lanes.SLOTS_PER_THREAD, -(-len(specs) // threads))
-        ratio = (
-            f"**{100 * rate / ceiling:.0f} %** of ceiling; CPU {1e6 * cpu_step:.2f} µs/step, "
-            f"{100 * ceiling_cpu / cpu_step:.0f} % of the ceiling's"
-        )
-        batch = f"{len(specs)} ({slots} per thread)"
-        rows.append(_row("mujoco", cpu_name(), batch, threads, rate, len(specs) / wall, ratio,
-                         result.summary()))  # fmt: skip
         bare = f"CPU {1e6 * ceiling_cpu:.2f} µs/step"
         rows.append(_row("bare mj_step (ceiling)", cpu_name(), len(snaps), f"{threads} processes",
                          ceiling, "-", bare, replayed))  # fmt: skip
         rows.append(_row("bare `Batch.step`", cpu_name(), len(snaps), threads, in_batch, "-",
                          f"{100 * in_batch / ceiling:.0f} % of ceiling",
                          f"{replayed}, 512 simulations per batch, one step per call"))  # fmt: skip
-        overhead = call_overhead(specs, params, threads)
-        notes.append(f"{threads} thread(s): {1e3 * overhead:.1f} ms per call of 2 one-step trials")
-    early, wall, _ = time_engine(specs, params, full.replace(end_settled=True), args.threads)
-    rate = int(early.steps.sum()) / wall
-    rows.append(_row("mujoco, early ending", cpu_name(), f"{len(specs)}", args.threads, rate,
-                     len(specs) / wall, f"{100 * rate / ceiling:.0f} % of ceiling",
-                     early.summary()))  # fmt: skip
+        lanes_as = [("threads", None)] + ([("processes", threads)] if threads > 1 else [])
+        for name in passes:
+            for how, processes in lanes_as:
+                # Best of `--repeat`: other jobs on a shared machine come and go.
+                result, wall, cpu = min(
+                    (time_engine(specs, params, full, None if processes else threads,
+                                 PASSES[name], processes) for _ in range(args.repeat)),
+                    key=lambda run: run[1],
+                )  # fmt: skip
+                steps = int(result.steps.sum())
+                rate, cpu_step = steps / wall, cpu / steps
+                walls[(name, threads, how)] = wall
+                slots = min(lanes.SLOTS_PER_THREAD, -(-len(specs) // threads))
+                cpu_text = f"; CPU {1e6 * cpu_step:.2f} µs/step" if how == "threads" else ""
+                ratio = (f"**{100 * rate / in_batch:.0f} %** of `Batch.step`, "
+                         f"{100 * rate / ceiling:.0f} % of ceiling{cpu_text}")  # fmt: skip
+                batch = f"{len(specs)} ({slots} per lane)"
+                label = f"mujoco, {name} pass, lanes as {how}"
+                rows.append(_row(label, cpu_name(), batch, threads, rate, len(specs) / wall,
+                                 ratio, result.summary()))  # fmt: skip
+            overhead = call_overhead(specs, params, threads, PASSES[name])
+            notes.append(f"{name} pass, {threads} lane(s): {1e3 * overhead:.1f} ms per call of "
+                         f"2 one-step trials")  # fmt: skip
+    for name in passes:
+        early, wall, _ = time_engine(specs, params, full.replace(end_settled=True), args.threads,
+                                     PASSES[name])  # fmt: skip
+        rate = int(early.steps.sum()) / wall
+        rows.append(_row(f"mujoco, {name} pass, early ending", cpu_name(), f"{len(specs)}",
+                         args.threads, rate, len(specs) / wall,
+                         f"{100 * rate / ceiling:.0f} % of ceiling", early.summary()))  # fmt: skip
     notes.append(f"load average after: {os.getloadavg()[0]:.2f}")
     if not args.no_profile:
-        notes += ["profile of one lane (threads=1), µs per env-step:"]
-        notes += ["  " + line for line in profile_parts(specs, params, full, walls[1])]
+        for name in passes:
+            notes += [f"profile of one lane (threads=1), {name} pass, µs per env-step:"]
+            notes += ["  " + line for line in profile_parts(
+                specs, params, full, PASSES[name], walls[(name, 1, "threads")])]  # fmt: skip
     if args.mjx_trials:
         sub = specs.take(np.arange(args.mjx_trials))
         sub_params = as_controller_params(baseline_params(), len(sub))
-        mjx_config = TrialConfig(time_limit_s=args.mjx_time_limit)
+        mjx_config = TrialConfig(time_limit_s=args.mjx_time_limit, search=full.search)
         mres, mwall, compile_s, device = time_mjx(sub, sub_params, mjx_config, args.mjx_trials)
         rows.append(
             _row("mjx (JAX impl)", device, len(sub), "-", mres.steps.sum() / mwall,
                  len(sub) / mwall, f"compile {compile_s:.0f} s", mres.summary())
         )  # fmt: skip
     header = (
-        "| engine | device | trials (batch) | threads | physics steps/s | trials/s | ratio | "
+        "| engine | device | trials (batch) | lanes | physics steps/s | trials/s | ratio | "
         "outcome |\n|---|---|---|---|---|---|---|---|"
     )
     table = "\n".join([header, *rows])
@@ -273,12 +305,13 @@ def main() -> None:
     print("\n".join(notes))
     if args.write:
         section = (
-            "## Trial engines\n\nBaseline parameters, square 50 mm, errors ±3 mm / ±4 deg, "
-            f"{args.time_limit:g} s limit ({args.mjx_time_limit:g} s for mjx). Physics steps/s "
-            "counts only steps of live trials; the ceiling replays the engine's own states with "
-            "bare `mj_step` on as many processes. Command: `python benchmarks/trials.py --write` "
-            f"(--trials {args.trials}, --threads {args.threads}, --mjx-trials {args.mjx_trials})."
-            f"\n\n{table}\n\n"
+            f"## Trial engines\n\nBaseline parameters, the {args.skill} skill, {args.shapes} "
+            f"50 mm, errors ±3 mm / ±4 deg, {args.time_limit:g} s limit "
+            f"({args.mjx_time_limit:g} s for mjx). Physics steps/s counts only steps of live "
+            "trials; the ceiling replays the engine's own states with bare `mj_step` on as many "
+            "processes. Command: `python "
+            f"benchmarks/trials.py --write` (--trials {args.trials}, --threads {args.threads}, "
+            f"--mjx-trials {args.mjx_trials}).\n\n{table}\n\n"
         )
         write_section(ROOT / "BENCHMARKS.md", "## Trial engines", section)
 

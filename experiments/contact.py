@@ -2,7 +2,7 @@
 
     python experiments/contact.py [--policy baseline|RUN_DIR] [--sensor VARIANT] [--trials 500]
         [--time-limit 60] [--seed 1] [--first] [--full-time-limit] [--threads N]
-        [--processes N] [--indices FILE] [--csv FILE]
+        [--processes N] [--pass numpy|compiled] [--indices FILE] [--csv FILE]
 
 The set: circle + square 50 mm (`--shapes`, `--size-mm`), +-4 mm / +-6 deg,
 `sample_trials(seed)`, on the C engine with the default TrialConfig (failures that have settled
@@ -12,8 +12,9 @@ and the failure taxonomy (`mjx_peg.evaluation.taxonomy`). `--first`: the first h
 baseline instead of the current one; `--policy RUN_DIR`: a trained policy. `--sensor` changes
 one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F` gives every trial
 the friction F. `--indices FILE`: only those of the trials (one index per line; the CSV keeps
-their indices). `--csv`: one row per trial, for paired comparisons
-(`experiments/contact_table.py`). Why these trials: docs/design/credible_contact.md.
+their indices). `--pass`: the control period's pass (`run_trials(compiled=...)`; default the
+engine's). `--csv`: one row per trial, for paired comparisons (`experiments/contact_table.py`).
+Why these trials: docs/design/credible_contact.md.
 """
 
 from __future__ import annotations
@@ -114,6 +115,8 @@ def main(argv=None) -> None:
     p.add_argument("--full-time-limit", action="store_true", help="run every failure to the limit")
     p.add_argument("--threads", type=int, default=None, help="lanes (default: every core)")
     p.add_argument("--processes", type=int, default=None, help="lanes in worker processes")
+    p.add_argument("--pass", dest="control_pass", choices=("numpy", "compiled"), default=None,
+                   help="the control period's pass (default: the engine's)")  # fmt: skip
     p.add_argument("--policy", default="baseline", help="'baseline' or a training run directory")
     p.add_argument("--sensor", default="nominal", choices=SENSOR_VARIANTS)
     p.add_argument("--friction", type=float, help="every trial's friction (default: drawn)")
@@ -183,8 +186,9 @@ def main(argv=None) -> None:
         moment_deadband=moment_deadband,
         search=search,
     )
+    compiled = None if args.control_pass is None else args.control_pass == "compiled"
     result = run_trials(specs, vec, engine="mujoco", config=config, threads=args.threads,
-                        processes=args.processes)  # fmt: skip
+                        processes=args.processes, compiled=compiled)  # fmt: skip
     wall = time.perf_counter() - start
     steps = int(result.steps.sum())
     times = result.time_s[result.success]

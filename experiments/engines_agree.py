@@ -1,11 +1,15 @@
 """Sim-to-sim check: the same specs and parameters on the mujoco and mjx engines.
 
-    python experiments/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25] [--out F.npz]
+    python experiments/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25]
+        [--skill paper|spiral] [--policy baseline|quick|...] [--out F.npz]
 
-Prints the fraction of trials with the same outcome, the median times to complete of the trials
-both engines completed, and the final tip distance between the engines. For scale it also runs
-the mujoco engine on the same specs with every hole moved by --nudge-m (default 1e-9 m): how
-often that alone flips an outcome. --out saves both engines' per-trial results (.npz).
+Prints the fraction of trials with the same outcome (of all, and of those that ended within the
+time limit on the mujoco engine), the median times to complete of the trials both engines
+completed, and the final tip distance between the engines. For scale it also runs the mujoco
+engine on the same specs with every hole moved by --nudge-m (default 1e-9 m): how often that
+alone flips an outcome. --skill and --policy: the skill and the controller's 38 numbers (the
+hand-tuned baseline, or a policy's vectors for each trial). --out saves both engines' per-trial
+results (.npz).
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ import numpy as np
 
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.policy.export import load_policy
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 
@@ -46,31 +52,38 @@ def main(argv=None) -> None:
     p.add_argument("--angular-deg", type=float, default=4.0)
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--nudge-m", type=float, default=1e-9, help="hole shift of the C-vs-C check")
+    p.add_argument("--skill", default="paper", choices=tuple(SKILLS))
+    p.add_argument("--policy", default="baseline", help="'baseline', a shipped policy or a run")
     p.add_argument("--out", help="save per-trial results of both engines to this .npz")
     args = p.parse_args(argv)
     specs = agreement_specs(
         args.trials, tuple(args.shapes.split(",")), args.linear_mm, args.angular_deg, args.seed
     )
-    config = TrialConfig(time_limit_s=args.time_limit)
+    params = baseline_params()
+    if args.policy != "baseline":
+        params = load_policy(args.policy).controller_vectors(specs)
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(args.skill))
     start = time.perf_counter()
-    cpu = run_trials(specs, baseline_params(), engine="mujoco", config=config)
+    cpu = run_trials(specs, params, engine="mujoco", config=config)
     cpu_s = time.perf_counter() - start
     start = time.perf_counter()
-    acc = run_trials(specs, baseline_params(), engine="mjx", config=config, batch=args.batch)
+    acc = run_trials(specs, params, engine="mjx", config=config, batch=args.batch)
     acc_s = time.perf_counter() - start
     rng = np.random.default_rng(args.seed)
     nudge = args.nudge_m * rng.standard_normal(specs.board_pos.shape)
     nudged = run_trials(
         dataclasses.replace(specs, board_pos=specs.board_pos + nudge),
-        baseline_params(), engine="mujoco", config=config,
+        params, engine="mujoco", config=config,
     )  # fmt: skip
     same = cpu.success == acc.success
+    ended = cpu.steps < config.max_steps  # ended within the limit on the mujoco engine
     both = cpu.success & acc.success
     t_cpu, t_acc = np.median(cpu.time_s[both]), np.median(acc.time_s[both])
     tip_gap = np.linalg.norm(cpu.final_tip_pos - acc.final_tip_pos, axis=1)
     print(f"mujoco: {cpu.summary()} ({cpu_s:.0f} s wall)")
     print(f"mjx:    {acc.summary()} ({acc_s:.0f} s wall incl. compile)")
-    print(f"same outcome on {same.sum()}/{len(specs)} = {100 * same.mean():.1f} %")
+    print(f"same outcome on {same.sum()}/{len(specs)} = {100 * same.mean():.1f} %; of the "
+          f"{ended.sum()} that ended within the limit on mujoco: {same[ended].sum()}")  # fmt: skip
     print(
         f"median time, both succeeded ({both.sum()}): mujoco {t_cpu:.3f} s, mjx {t_acc:.3f} s "
         f"({100 * (t_acc / t_cpu - 1):+.1f} %)"
@@ -86,7 +99,8 @@ def main(argv=None) -> None:
     floor = nudged.success == cpu.success
     print(
         f"mujoco vs mujoco with holes moved by {args.nudge_m:g} m: same outcome on "
-        f"{floor.sum()}/{len(specs)} = {100 * floor.mean():.1f} %"
+        f"{floor.sum()}/{len(specs)} = {100 * floor.mean():.1f} %; of those that ended: "
+        f"{floor[ended].sum()}/{ended.sum()}"
     )
     if args.out:
         arrays = {f"mujoco_{k}": v for k, v in cpu.to_arrays().items()}

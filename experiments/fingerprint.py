@@ -3,13 +3,16 @@ commits and compare, to show a change left the trial's behaviour as it was.
 
     python experiments/fingerprint.py before.npz                  # at the old commit
     python experiments/fingerprint.py after.npz --compare before.npz
+    python experiments/fingerprint.py compiled.npz --pass compiled --paired before.npz
 
 The batch: 48 trials (circle, square, triangle 50 mm, ±4 mm / ±6 deg, randomized sensor draws)
 with the baseline's 38 numbers each scaled by U(0.8, 1.2), under seven trial configs (nominal,
 protective stops at 60 N, loose settle tolerances, a 0.3 rad/s speed limit, every failure to the
 limit, a 125 Hz / 25 Hz / 3-period sensor, the spiral skill), and 24 zero-error trials, all
 but the spiral's with one skill (`--skill`, the paper's by default); `--compare` lists the arrays
-that differ (exit 1 if any).
+that differ (exit 1 if any). `--pass`: the control period's pass (default the engine's);
+`--paired`: each config's outcomes trial by trial against another batch of the same trials, with
+McNemar's exact p and the largest difference of the times to complete.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ def variants(scale: float, skill: str = "paper") -> dict[str, TrialConfig]:
 
 
 def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange",
-                skill: str = "paper"):  # fmt: skip
+                skill: str = "paper", compiled: bool | None = None):  # fmt: skip
     """{variant/field: array} of every TrialResult field of the batch."""
     task = TaskConfig(shapes=SHAPES, linear_error=0.004, angular_error=np.deg2rad(6.0),
                       sensor_cutoff_scale=(0.5, 2.0), sensor_noise_scale=(0.5, 2.0),
@@ -61,14 +64,14 @@ def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange
     params = as_controller_params(scaled, trials)
     out = {}
     for name, config in variants(scale, skill).items():
-        result = engine.run_on_cpu(specs, params, config, threads=2)
+        result = engine.run_on_cpu(specs, params, config, threads=2, compiled=compiled)
         out.update({f"{name}/{k}": v for k, v in result.to_arrays().items()})
         print(f"{name}: {result.summary()}")
     zero = TaskConfig(shapes=SHAPES, linear_error=0.0, angular_error=0.0)
     n = max(1, trials // 2)
     result = engine.run_on_cpu(sample_trials(zero, 7, n), as_controller_params(vector, n),
                                TrialConfig(time_limit_s=8.0 * scale, search=skill_config(skill)),
-                               threads=1)  # fmt: skip
+                               threads=1, compiled=compiled)  # fmt: skip
     out.update({f"zero/{k}": v for k, v in result.to_arrays().items()})
     print(f"zero: {result.summary()}")
     return out
@@ -79,6 +82,24 @@ def _same(a, b, key: str) -> bool:
         return False
     x, y = np.asarray(a[key]), np.asarray(b[key])
     return x.shape == y.shape and x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def paired(a, b) -> list[str]:
+    """Per trial config: outcomes of batch `b` against `a` (the same trials), one line each."""
+    from scipy.stats import binomtest
+
+    lines = []
+    for name in sorted({k.split("/")[0] for k in a.files if k.endswith("/success")}):
+        x, y = a[f"{name}/success"], b[f"{name}/success"]
+        lost, gained = int((x & ~y).sum()), int((~x & y).sum())
+        p = binomtest(lost, lost + gained).pvalue if lost + gained else 1.0
+        dt = np.abs(a[f"{name}/time_s"] - b[f"{name}/time_s"])[x & y]
+        most = dt.max() if dt.size else 0.0
+        same = int((a[f"{name}/steps"] == b[f"{name}/steps"]).sum())
+        lines.append(f"{name}: {int(x.sum())} / {int(y.sum())} of {x.size} succeeded, {lost} lost, "
+                     f"{gained} gained (McNemar p = {p:.2g}); same steps {same} / {x.size}; time "
+                     f"to complete differs by at most {most:.3f} s")  # fmt: skip
+    return lines
 
 
 def main(argv=None) -> int:
@@ -96,9 +117,16 @@ def main(argv=None) -> int:
         choices=tuple(SKILLS),
         help="the skill every trial runs (default paper: the paper's as written)",
     )
+    p.add_argument("--pass", dest="control_pass", choices=("numpy", "compiled"), default=None,
+                   help="the control period's pass (default: the engine's)")  # fmt: skip
+    p.add_argument("--paired", help="an npz written before: outcomes trial by trial")
     args = p.parse_args(argv)
-    arrays = fingerprint(args.trials, args.time_scale, args.grasp_model, args.skill)
+    compiled = None if args.control_pass is None else args.control_pass == "compiled"
+    arrays = fingerprint(args.trials, args.time_scale, args.grasp_model, args.skill, compiled)
     np.savez(args.out, **arrays)
+    if args.paired is not None:
+        with np.load(args.out, allow_pickle=False) as b, np.load(args.paired) as a:
+            print("\n".join(paired(a, b)))
     if args.compare is None:
         return 0
     with np.load(args.compare, allow_pickle=False) as other:

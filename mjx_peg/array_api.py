@@ -1,7 +1,14 @@
-"""The array-API namespace of a computation's inputs, and the one write the API lacks.
+"""The array-API namespace of a computation's inputs, the one write the API lacks, and the small
+batched products whose best form differs between NumPy and XLA.
 
 The skill, the rotations and the trial's period are written once over the namespace of their
 inputs (NumPy 2 or JAX, tracers included); this module imports neither numpy nor jax.
+
+`matvec`, `matmul` and `solve_spd` are one operation with two forms: on NumPy the BLAS / LAPACK
+call (`@`, `linalg.solve`: the reference's bits), on JAX elementwise products and sums over the
+last axes. XLA on a CPU runs a batched `dot` or `linalg.solve` of (..., 6, 6) matrices as one
+library call per matrix and a kernel of its own that nothing fuses with; the elementwise forms
+fuse with their neighbours (design notes: docs/design/compiled_period.md).
 """
 
 from __future__ import annotations
@@ -35,9 +42,9 @@ def ring_write(ring, index, value, mask):
     """`ring` (..., W) with ring[..., index % W] = value where `mask` (index, value, mask: (...,)).
 
     NumPy (rings (n, W): the CPU engine's rows) writes the masked entries in place and returns
-    the same array (a trial's ring is
-    1 s of periods: copying it every period would cost more than the rest of the period); JAX,
-    which has no in-place write, returns a new array.
+    the same array (a trial's ring is 1 s of periods: copying it every period would cost more than
+    the rest of the period); JAX returns a new array, one entry per ring scattered (XLA writes it
+    in place where the ring's buffer is donated).
     """
     xp = namespace_of(ring, value)
     width = ring.shape[-1]
@@ -47,8 +54,69 @@ def ring_write(ring, index, value, mask):
         rows = xp.nonzero(mask)[0]
         ring[rows, index[rows] % width] = value[rows]
         return ring
-    hit = (xp.arange(width) == (index % width)[..., None]) & mask[..., None]
-    return xp.where(hit, value[..., None], ring)
+    # JAX: a scatter of one entry per ring (updated in place where the caller donates the ring)
+    flat = xp.reshape(ring, (-1, width))
+    rows = xp.arange(flat.shape[0])
+    at = xp.reshape(index % width, (-1,))
+    old = flat[rows, at]
+    new = xp.where(xp.reshape(mask, (-1,)), xp.reshape(value, (-1,)), old)
+    return xp.reshape(flat.at[rows, at].set(new), ring.shape)
+
+
+def _is_numpy(xp) -> bool:
+    return xp.__name__ == "numpy"
+
+
+def matvec(mat, vec):
+    """(..., m) mat (..., m, n) @ vec (..., n)."""
+    xp = namespace_of(mat, vec)
+    if _is_numpy(xp):
+        return (mat @ vec[..., None])[..., 0]
+    return xp.sum(mat * vec[..., None, :], axis=-1)
+
+
+def matmul(a, b):
+    """(..., m, k) a (..., m, n) @ b (..., n, k)."""
+    xp = namespace_of(a, b)
+    if _is_numpy(xp):
+        return a @ b
+    return xp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
+
+
+def solve_spd(a, b):
+    """(..., n) x with a x = b, a (..., n, n) symmetric positive definite, b (..., n).
+
+    NumPy: LAPACK's LU (`linalg.solve`). JAX: Cholesky, a = L L^T, unrolled over the n (small,
+    static) rows, elementwise over the batch; it reads the lower triangle of a only.
+    """
+    xp = namespace_of(a, b)
+    if _is_numpy(xp):
+        return xp.linalg.solve(a, b[..., None])[..., 0]
+    n = a.shape[-1]
+    low = [[None] * n for _ in range(n)]  # L[i][j], j <= i, each (...,)
+    for j in range(n):
+        diag = a[..., j, j]
+        for k in range(j):
+            diag = diag - low[j][k] * low[j][k]
+        low[j][j] = xp.sqrt(diag)
+        for i in range(j + 1, n):
+            entry = a[..., i, j]
+            for k in range(j):
+                entry = entry - low[i][k] * low[j][k]
+            low[i][j] = entry / low[j][j]
+    y = [None] * n  # L y = b
+    for i in range(n):
+        entry = b[..., i]
+        for k in range(i):
+            entry = entry - low[i][k] * y[k]
+        y[i] = entry / low[i][i]
+    x = [None] * n  # L^T x = y
+    for i in reversed(range(n)):
+        entry = y[i]
+        for k in range(i + 1, n):
+            entry = entry - low[k][i] * x[k]
+        x[i] = entry / low[i][i]
+    return xp.stack(x, axis=-1)
 
 
 def tree_map(f, tree, *rest):

@@ -1,4 +1,4 @@
-"""Shared test set-up: headless rendering and a persistent JAX compilation cache."""
+"""Shared test set-up: headless rendering, a persistent JAX compilation cache, the NumPy pass."""
 
 import os
 import pathlib
@@ -8,6 +8,9 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 _CACHE = pathlib.Path(__file__).resolve().parent.parent / ".jax_cache"
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
+# The CPU engine's NumPy pass, the reference, unless a test names the compiled one: a compile per
+# trial config would cost the suite minutes (tests/engines/test_compiled.py checks the other).
+os.environ.setdefault("MJX_PEG_CONTROL_PASS", "numpy")
 
 
 import pytest  # noqa: E402

@@ -88,6 +88,28 @@ def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):
     assert "Reproduce: `python experiments/early_ending.py" in text
 
 
+def test_withdrawn_ending_reruns_an_evaluations_failures_and_pairs_two_runs(tmp_path):
+    from mjx_peg.evaluation.config import EvalConfig
+    from mjx_peg.evaluation.eval_dir import prepare_out_dir
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
+
+    config = EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,), angular_deg=(1.0,),
+                        trials=2, shapes=("square",), size_mm=50.0, time_limit_s=0.2,
+                        skill="spiral")  # fmt: skip
+    prepare_out_dir(tmp_path / "eval", config, None)
+    _, controller = load_controller("baseline")
+    assert run_evaluation(config, tmp_path / "eval", controller, {"threads": 1},
+                          show_progress=False)  # fmt: skip
+    args = ("--eval", tmp_path / "eval", "--policy", "baseline", "--pass", "numpy")
+    out = run_script("experiments/withdrawn_ending.py", tmp_path / "a.npz", *args)
+    assert "2 trials of " in out and "0 succeeded" in out  # 0.2 s: both ran to the limit
+    out = run_script("experiments/withdrawn_ending.py", tmp_path / "b.npz", *args, "--compare",
+                     tmp_path / "a.npz")  # fmt: skip
+    assert "outcome differs on 0 of 2 [], class on 0 []; steps on 0 (0 successes)" in out
+    with np.load(tmp_path / "b.npz") as saved:
+        assert saved["picked"].tolist() == [[0, 0], [0, 1]] and saved["steps"].tolist() == [100] * 2
+
+
 def test_replay_failure_finds_a_failure_and_plots_its_replay(tmp_path):
     png = tmp_path / "replay.png"
     out = run_script("experiments/replay_failure.py", "--policy", "baseline", "--old-policy",
@@ -101,13 +123,16 @@ def test_replay_failure_finds_a_failure_and_plots_its_replay(tmp_path):
 def test_trials_benchmark_prints_its_table_and_the_profile(tmp_path):
     out = run_script("benchmarks/trials.py", "--trials", 4, "--time-limit", 0.2, "--threads", 1,
                      "--repeat", 1, "--mjx-trials", 0, "--replay-every", 25)  # fmt: skip
-    assert "| mujoco | " in out and "| bare mj_step (ceiling) |" in out
-    assert "profile of one lane (threads=1), µs per env-step:" in out
+    assert "| bare mj_step (ceiling) |" in out and "| bare `Batch.step` |" in out
+    for name in ("numpy", "compiled"):
+        assert f"| mujoco, {name} pass, lanes as threads | " in out
+        assert f"profile of one lane (threads=1), {name} pass, µs per env-step:" in out
     from mjx_peg.engines.lanes import PROFILE_STAGES
 
     for stage in PROFILE_STAGES:
         assert f"  {stage}: " in out
     assert "100 control periods, 4.0 trials each on average" in out  # 0.2 s, 4 slots
+    assert re.search(r"\*\*\d+ %\*\* of `Batch.step`", out)
 
 
 def test_the_profile_hook_sees_every_stage_and_changes_no_result():

@@ -1,9 +1,10 @@
 """Run trials on either physics engine: `run_trials(specs, params, engine=...)`.
 
-`mujoco`: C MuJoCo on MuJoCo's batched thread pool (`mujoco.batch`), the controller batched in
-NumPy (the default without an accelerator). `mjx`: the
-whole trial jitted and vmapped in MJX (GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator.
-The engines are imported lazily so that the CPU engine never pays for importing JAX.
+`mujoco` (the default without an accelerator): C MuJoCo on MuJoCo's batched thread pool
+(`mujoco.batch`), each control period's pass over the live trials compiled by XLA on the CPU
+(the default) or in NumPy (`compiled=False`). `mjx`: the whole trial jitted and vmapped in MJX
+(GPUs/TPUs). `auto` picks `mjx` when JAX sees an accelerator. The engines are imported lazily:
+the CPU engine imports JAX only for its compiled pass.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ def run_trials(
     params: `ControllerParams` (batched or not) or physical 38-vectors, shape (38,) or (B, 38).
     engine_options: `threads` (lanes, default every core),
     `slots_per_thread`, `batch_threads`, `persistent`, `processes` (lanes in that many worker
-    processes, `engines/processes.py`) (mujoco); `batch`, `recycle_every` (mjx).
+    processes, `engines/processes.py`), `compiled` (the control period's pass) (mujoco);
+    `batch`, `recycle_every` (mjx).
     """
     name = resolve_engine(engine)
     if not isinstance(specs, TrialSpec):

@@ -1,8 +1,9 @@
-"""The tcp Jacobian and its derivative from MuJoCo's bound fields, batched in NumPy.
+"""The tcp Jacobian and its derivative from MuJoCo's bound fields, batched; and the index that
+expands MjData.M (the sparse lower triangle of the mass matrix) to dense (mj_fullM).
 
-MuJoCo's mj_jac and mj_jacDot, operation for operation (so that the bits match), over many
-simulations at once; and the index that expands MjData.M (the sparse lower triangle of the
-mass matrix) to dense (mj_fullM).
+`jacobians` is MuJoCo's mj_jac and mj_jacDot, operation for operation (so that the bits match),
+over many simulations at once, written over the array-API namespace of its inputs: NumPy in the
+CPU engine's NumPy pass, XLA in its compiled one (`engines/compiled.py`).
 """
 
 from __future__ import annotations
@@ -10,14 +11,16 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-_NEXT, _LAST = np.array([1, 2, 0]), np.array([2, 0, 1])
+from mjx_peg.array_api import namespace_of
 
 
 def _cross(a, b):
     """(3, ...) a x b of vectors along the first axis (component-major, so that NumPy runs long
     loops), each component computed as MuJoCo's mju_cross so that the bits match:
     (a1 b2 - a2 b1, a2 b0 - a0 b2, a0 b1 - a1 b0)."""
-    return a[_NEXT] * b[_LAST] - a[_LAST] * b[_NEXT]
+    xp = namespace_of(a, b)
+    return xp.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])  # fmt: skip
 
 
 def jacobians(cdof, cdof_dot, cvel, com, point):
@@ -29,24 +32,18 @@ def jacobians(cdof, cdof_dot, cvel, com, point):
     `com` (n, 3), the subtree centre of mass of the body's root; cvel: (n, 6) the body's velocity
     in the same form.
     """
-    n, nv = cdof.shape[:2]
-    axes = np.ascontiguousarray(cdof.transpose(2, 0, 1))  # (6, n, nv)
-    axes_dot = np.ascontiguousarray(cdof_dot.transpose(2, 0, 1))
-    offset = np.ascontiguousarray((point - com).T)  # (3, n)
-    vel = np.ascontiguousarray(cvel.T)
+    xp = namespace_of(cdof, cdof_dot, cvel, com, point)
+    axes = xp.permute_dims(cdof, (2, 0, 1))  # (6, n, nv)
+    axes_dot = xp.permute_dims(cdof_dot, (2, 0, 1))
+    offset = xp.permute_dims(point - com, (1, 0))  # (3, n)
+    vel = xp.permute_dims(cvel, (1, 0))
     point_vel = vel[3:] - _cross(offset, vel[:3])  # mju_transformSpatial
-    offset = np.repeat(offset[:, :, None], nv, axis=2)  # (3, n, nv)
-    point_vel = np.repeat(point_vel[:, :, None], nv, axis=2)
-    jac, jac_dot = np.empty((6, n, nv)), np.empty((6, n, nv))
-    np.add(axes[3:], _cross(axes[:3], offset), out=jac[:3])
-    jac[3:] = axes[:3]
-    np.add(axes_dot[3:], _cross(axes_dot[:3], offset), out=jac_dot[:3])
-    jac_dot[:3] += _cross(axes[:3], point_vel)
-    jac_dot[3:] = axes_dot[:3]
-    return (
-        np.ascontiguousarray(jac.transpose(1, 0, 2)),
-        np.ascontiguousarray(jac_dot.transpose(1, 0, 2)),
+    offset, point_vel = offset[:, :, None], point_vel[:, :, None]  # (3, n, 1): over the dofs
+    jac = xp.concat([axes[3:] + _cross(axes[:3], offset), axes[:3]])
+    jac_dot = xp.concat(
+        [(axes_dot[3:] + _cross(axes_dot[:3], offset)) + _cross(axes[:3], point_vel), axes_dot[:3]]
     )
+    return xp.permute_dims(jac, (1, 0, 2)), xp.permute_dims(jac_dot, (1, 0, 2))
 
 
 def dense_mass_index(m: mujoco.MjModel) -> np.ndarray:

@@ -10,13 +10,13 @@ A slot whose trial ends takes the next trial at once (`scene.start_trial` on a s
 MjData, the integration state and model fields copied in, mj_forward), so cost follows the
 simulated time actually used. Live trials are rows [0, n), sorted by scene and simulation; a
 trial's constants and state (`period.TrialConsts`, `period.TrialState`) move with it when rows
-are re-sorted. Lanes run in Python threads: while one steps in C, another runs its NumPy pass.
-A trial's arithmetic does not depend on its lane, row, batch or thread count, so results are
-bit-identical whatever the threads, slots and batch threads (tested).
+are re-sorted. Lanes run in Python threads (`engines/threaded.py`): while one steps in C, another
+runs its NumPy pass. A trial's arithmetic does not depend on its lane, row, batch or thread
+count, so results are bit-identical whatever the threads, slots and batch threads (tested).
 
-Profiling: `run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's thread for each
-stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it the lanes read
-no clock. It only reads the clock: the results are the same with it.
+Profiling: `threaded.run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's
+thread for each stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it
+the lanes read no clock. It only reads the clock: the results are the same with it.
 """
 
 from __future__ import annotations
@@ -28,9 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mjx_peg.array_api import tree_map
-from mjx_peg.cores import cores
 from mjx_peg.engines import interrupt, period, sims
-from mjx_peg.engines.jacobian import jacobians
 from mjx_peg.engines.trial import (
     TrialConfig,
     TrialResult,
@@ -44,7 +42,7 @@ from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.skill.search import for_part
 from mjx_peg.world import mujoco_log
-from mjx_peg.world.task import TrialSpec, goal_pose, hole_frame
+from mjx_peg.world.task import goal_pose, hole_frame
 
 # MuJoCo's warnings go where the CLI sent them (its output directory or nowhere), never to
 # MUJOCO_LOG.TXT in the working directory: world/mujoco_log.py; here for the worker processes.
@@ -72,7 +70,7 @@ RESULT_DTYPE = np.dtype(
 )
 
 
-# The stages a profile hook sees (`run_in_threads(profile=...)`), in the order of a period.
+# The stages a profile hook sees (`threaded.run_in_threads(profile=...)`), in the order of a period.
 PROFILE_STAGES = {
     "measure": "the bound fields of the live rows gathered (`Sims.measure`)",
     "ends": "the end tests (`period.ends`) and the ended trials' results (`period.result`)",
@@ -222,27 +220,32 @@ class Lane:
         scene = np.concatenate([self.scene[keep], [k for k, _, _ in started]]).astype(np.int64)
         sim = np.concatenate([self.sim[keep], [s for _, s, _ in started]]).astype(np.int64)
         spec = np.concatenate([self.spec_index[keep], indices]).astype(np.int64)
-        consts, state = self.consts, self.state
-        if started:
-            new = tree_map(lambda *rows: np.stack(rows), *(c for _, _, c in started))
-            fresh = period.start(self.config, new)
-            if consts is None:
-                consts, state = new, fresh
-            else:
-                join = lambda a, b: np.concatenate([a[keep], b])  # noqa: E731
-                consts, state = tree_map(join, consts, new), tree_map(join, state, fresh)
-        elif consts is not None:
-            consts, state = _rows(consts, keep), _rows(state, keep)
         order = np.lexsort((sim, scene))
-        if not np.array_equal(order, np.arange(len(order))):
-            scene, sim, spec = scene[order], sim[order], spec[order]
-            consts, state = _rows(consts, order), _rows(state, order)
-        self.scene, self.sim, self.spec_index = scene, sim, spec
-        self.consts, self.state, self.n = consts, state, len(order)
+        self._join([c for _, _, c in started], keep, order)
+        self.scene, self.sim, self.spec_index = scene[order], sim[order], spec[order]
+        self.n = len(order)
         self.blocks = []
         for k in range(len(self.scenes)):
-            a, b = np.searchsorted(scene, [k, k + 1])
-            self.blocks.append((int(a), int(b), sim[a:b].astype(np.int32)))
+            a, b = np.searchsorted(self.scene, [k, k + 1])
+            self.blocks.append((int(a), int(b), self.sim[a:b].astype(np.int32)))
+
+    def _join(self, new: list, keep: np.ndarray, order: np.ndarray) -> None:
+        """The rows' constants and state: rows `keep`, then the new trials' (constants `new`, at
+        their start), in `order`."""
+        consts, state = self.consts, self.state
+        if new:
+            added = tree_map(lambda *rows: np.stack(rows), *new)
+            fresh = period.start(self.config, added)
+            if consts is None:
+                consts, state = added, fresh
+            else:
+                join = lambda a, b: np.concatenate([a[keep], b])  # noqa: E731
+                consts, state = tree_map(join, consts, added), tree_map(join, state, fresh)
+        elif consts is not None:
+            consts, state = _rows(consts, keep), _rows(state, keep)
+        if consts is not None and not np.array_equal(order, np.arange(len(order))):
+            consts, state = _rows(consts, order), _rows(state, order)
+        self.consts, self.state = consts, state
 
     # -- one control period ----------------------------------------------------------------------
 
@@ -257,9 +260,14 @@ class Lane:
         self.profile(stage, now - since)
         return now
 
-    def _measure(self) -> sims.Measured:
-        """The bound fields of rows [0, n): one gather per field and scene."""
-        parts = [self.scenes[k].measure(ids) for k, (a, b, ids) in enumerate(self.blocks) if b > a]
+    def _measure(self, size: int = 0) -> sims.Measured:
+        """The bound fields of rows [0, n), then copies of the last up to `size` rows: one gather
+        per field and scene."""
+        blocks = [(k, ids) for k, (a, b, ids) in enumerate(self.blocks) if b > a]
+        pads = [0] * (len(blocks) - 1) + [max(0, size - self.n)]
+        parts = [
+            self.scenes[k].measure(ids, pad) for (k, ids), pad in zip(blocks, pads, strict=True)
+        ]
         if len(parts) == 1:
             return parts[0]
         return sims.Measured(*(np.concatenate(field) for field in zip(*parts, strict=True)))
@@ -273,8 +281,7 @@ class Lane:
             m = self._measure()
             t = self._lap("measure", t)
             tip = m.site_pos[:, 1]
-            # MuJoCo resets MjData (time back to 0) when its accelerations blow up.
-            physics_ok = ~(np.abs(m.time - self.state.step * cfg.timestep) > 0.5 * cfg.timestep)
+            physics_ok = sims.physics_ok(m.time, self.state.step, cfg.timestep)
             end = period.ends(cfg, self.consts, self.state, tip, m.qvel, physics_ok)
             rows = np.flatnonzero(end.ended)
             if rows.size == 0:
@@ -283,41 +290,33 @@ class Lane:
             state = _rows(self.state, rows)
             outcome = period.result(cfg, _rows(self.consts, rows), state, tip[rows],
                                     _rows(end, rows))  # fmt: skip
-            source.finish(self.spec_index[rows], outcome, state.step * cfg.timestep)
-            for i in rows.tolist():
-                self.scenes[self.scene[i]].free.append(int(self.sim[i]))
-            t = self._lap("ends", t)
-            indices = []
-            for _ in range(rows.size):
-                index = source.take()
-                if index is None:
-                    break
-                indices.append(index)
-            keep = np.ones(self.n, dtype=bool)
-            keep[rows] = False
-            self._add(indices, np.flatnonzero(keep))
-            self._lap("load", t)
-            if report:
-                source.flush()
+            self._finish(source, rows, outcome, state.step, report, t)
         return None
+
+    def _finish(self, source, rows: np.ndarray, outcome: period.Outcome, steps, report: bool,
+                t: float) -> None:  # fmt: skip
+        """Record the trials at `rows` that ended (`outcome`, after `steps` periods), free their
+        simulations, and fill their rows with new trials from `source`."""
+        source.finish(self.spec_index[rows], outcome, steps * self.config.timestep)
+        for i in rows.tolist():
+            self.scenes[self.scene[i]].free.append(int(self.sim[i]))
+        t = self._lap("ends", t)
+        indices = []
+        for _ in range(rows.size):
+            index = source.take()
+            if index is None:
+                break
+            indices.append(index)
+        keep = np.ones(self.n, dtype=bool)
+        keep[rows] = False
+        self._add(indices, np.flatnonzero(keep))
+        self._lap("load", t)
+        if report:
+            source.flush()
 
     def measurement(self, m: sims.Measured) -> period.PeriodMeasurement:
         """The period's measurement of rows [0, n) from their bound fields."""
-        tcp_pos, ft_pos = np.ascontiguousarray(m.site_pos[:, 0]), m.site_pos[:, 2]
-        jac, jac_dot = jacobians(m.cdof, m.cdof_dot, m.cvel, m.com, tcp_pos)
-        return period.PeriodMeasurement(
-            qvel=m.qvel,
-            tcp_pos=tcp_pos,
-            tcp_rot=np.ascontiguousarray(m.site_rot[:, 0]),
-            tip_pos=m.site_pos[:, 1],
-            ft=m.ft,
-            ft_rot=m.site_rot[:, 1],
-            ft_pos=ft_pos,
-            jac=jac,
-            jdot_qdot=(jac_dot @ m.qvel[..., None])[..., 0],
-            mass=m.mass,
-            bias=m.bias,
-        )
+        return sims.period_measurement(m)
 
     def advance(self, m: sims.Measured):
         """(state, torques, wrench) of rows [0, n) after this period: `period.advance` on their
@@ -383,48 +382,6 @@ class Lane:
                 sims.give_sims(scene_sims)
 
 
-def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
-              observer=None, profile=None) -> None:  # fmt: skip
-    """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
-
-    The simulations of this call's scenes are kept for the next call, the others dropped.
-    """
-    count: dict[tuple, int] = {}
-    for index in range(len(specs)):
-        key = sims.scene_key(specs, index)
-        count[key] = count.get(key, 0) + 1
-    nsim = {key: min(slots, c) for key, c in count.items()}
-    lanes = [Lane(specs, params, config, slots, nsim, kind, profile) for _ in range(threads)]
-    errors: list[BaseException] = []
-
-    def work(lane, report=False):
-        try:
-            lane.run(source, observer, report)
-        except BaseException as exc:  # re-raised in the caller's thread
-            errors.append(exc)
-            source.stop()
-
-    try:
-        if threads == 1:
-            work(lanes[0], report=True)
-        else:
-            pool = [threading.Thread(target=work, args=(lane,), daemon=True) for lane in lanes]
-            for t in pool:
-                t.start()
-            for t in pool:
-                while t.is_alive():
-                    t.join(timeout=0.05)
-                    source.flush()
-    except BaseException:  # KeyboardInterrupt: stop the lanes at their next period
-        source.stop()
-        raise
-    source.flush()
-    sims.keep_sims(set(count))
-    if errors:
-        raise errors[0]
-    interrupt.check()  # the lanes stopped early: their results are incomplete
-
-
 def count(name: str, value, default: int) -> int:
     """`value` as a positive integer option called `name`, `default` for None."""
     if value is None:
@@ -432,33 +389,3 @@ def count(name: str, value, default: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise UsageError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
-
-
-def run_in_threads(
-    specs: TrialSpec,
-    params: ControllerParams,
-    config: TrialConfig,
-    threads: int | None = None,
-    slots_per_thread: int | None = None,
-    progress: Callable[[int], None] | None = None,
-    observer: Callable | None = None,
-    batch_threads: int | None = None,
-    persistent: bool | None = None,
-    profile: Callable[[str, float], None] | None = None,
-) -> TrialResult:
-    """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_on_cpu`' options;
-    params batched and validated)."""
-    n = len(specs)
-    if observer is not None and threads not in (None, 1):
-        raise UsageError("an observer runs in the lane's thread: it needs threads=1")
-    default = 1 if observer is not None else cores()
-    threads = min(count("threads", threads, default), n)
-    batch_threads = count("batch_threads", batch_threads, 1)
-    slots = count("slots_per_thread", slots_per_thread, 0) or max(
-        1, min(SLOTS_PER_THREAD, -(-n // max(threads, 1)))
-    )
-    queue = Queue(n, progress)
-    kind = (batch_threads, None if persistent is None else bool(persistent))
-    if n:
-        run_lanes(specs, params, config, threads, slots, kind, queue, observer, profile)
-    return to_result(queue.records)

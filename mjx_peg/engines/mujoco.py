@@ -1,7 +1,7 @@
 """The CPU engine: C MuJoCo stepped by its own thread pool (`mujoco.batch`), the trial's periods
 batched in NumPy over every live trial at once (`engines/lanes.py`, `engines/period.py`).
 
-`run_on_cpu` runs the trials in lanes of this process (threads, `lanes.run_in_threads`), in
+`run_on_cpu` runs the trials in lanes of this process (`threaded.run_in_threads`), in
 worker processes (`processes.run_in_processes`) or on a Ray cluster (`ray_pool.run_on_cluster`);
 all three give the same results, bit for bit.
 """
@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from mjx_peg.engines import lanes
+import numpy as np
+
+from mjx_peg.engines import lanes, threaded
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.params import ControllerParams
@@ -30,6 +32,7 @@ def run_on_cpu(
     processes: int | None = None,
     ray: str | None = None,
     profile: Callable[[str, float], None] | None = None,
+    compiled: bool | None = None,
 ) -> TrialResult:
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
@@ -51,7 +54,17 @@ def run_on_cpu(
     each) of `threads` lanes each (default 1); None (the default): lanes in this process.
     ray: run them on the Ray cluster at this address, one lane per CPU (`engines/ray_pool.py`:
     "auto", "local" or HOST:PORT); the same results.
+    compiled: each lane's control period compiled by XLA (`engines/compiled.py`: the same
+    functions, float64, in XLA's order of operations) or the NumPy pass (the reference, and the
+    robot's); default: compiled, unless the environment variable MJX_PEG_CONTROL_PASS says
+    numpy. Either gives the same results whatever the lanes, slots, processes or cluster; the two
+    agree to rounding, which contact can grow into a different trajectory (BENCHMARKS.md, "The
+    compiled period").
     """
+    if compiled is None:  # resolved here: workers and cluster nodes run this call's pass
+        compiled = threaded.default_compiled()
+    elif not isinstance(compiled, (bool, np.bool_)):
+        raise UsageError(f"compiled must be True or False, got {compiled!r}")
     if ray is not None or processes is not None:  # lanes elsewhere: bad values are one error
         for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
                             ("batch_threads", batch_threads)):  # fmt: skip
@@ -65,7 +78,7 @@ def run_on_cpu(
 
         return ray_pool.run_on_cluster(
             specs, params, config, ray, progress=progress, slots_per_thread=slots_per_thread,
-            batch_threads=batch_threads, persistent=persistent,
+            batch_threads=batch_threads, persistent=persistent, compiled=compiled,
         )  # fmt: skip
     if processes is not None:
         processes = lanes.count("processes", processes, 1)
@@ -77,9 +90,10 @@ def run_on_cpu(
         return worker_processes.run_in_processes(
             specs, params, config, processes, threads=threads, progress=progress,
             slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
+            compiled=compiled,
         )  # fmt: skip
-    return lanes.run_in_threads(
+    return threaded.run_in_threads(
         specs, params, config, threads=threads, slots_per_thread=slots_per_thread,
         progress=progress, observer=observer, batch_threads=batch_threads, persistent=persistent,
-        profile=profile,
+        profile=profile, compiled=compiled,
     )  # fmt: skip

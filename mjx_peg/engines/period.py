@@ -6,8 +6,9 @@ reading one physics step old):
 
 1. `ends`: the end tests at this measurement: success (tip through the hole, near the table),
    unstable (joints beyond `max_joint_speed`, NaN, or the engine's own physics check), the
-   protective stop (set by an earlier period's sensed force), settled (`trial.settle_update`),
-   out of time; success needs neither of the failures.
+   protective stop (set by an earlier period's sensed force), settled (`trial.settle_update`, or
+   withdrawn by the search: `search.search_withdrawn`), out of time; success needs neither of the
+   failures.
 2. `advance`, for a trial that goes on: the F/T pipeline (`skill.sensor`) on the tared reading;
    the contact metrics (peak sensed force, the 150 N protective stop, the chatter ring of the
    true axial force); the compliance damping W_k = a_c W_(k-1) + (1 - a_c) F_k (Eq. 4 with
@@ -51,7 +52,7 @@ from mjx_peg.skill.control_step import (
     skill_torque,
     wrench_to_goal,
 )
-from mjx_peg.skill.search import aligned_rotation, spiral_state
+from mjx_peg.skill.search import aligned_rotation, search_withdrawn, spiral_state
 
 
 class TrialConsts(NamedTuple):
@@ -168,7 +169,11 @@ def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, q
         unstable = unstable | ~physics_ok
     stop = state.stop
     success = inside & ~stop & ~unstable
-    settled = is_settled(state.settle, config) & ~inside & ~unstable & ~stop
+    # Settled: at rest or repeating the same motion, or withdrawn by the search a settle window
+    # ago (skill.search); either way the outcome can no longer change.
+    withdrawn = search_withdrawn(config.search, state.spiral, config.settle_window_s)
+    settled = (is_settled(state.settle, config) | (withdrawn & config.end_settled)) & ~inside
+    settled = settled & ~unstable & ~stop
     out_of_time = physics_steps(state.step, period_steps) >= config.max_steps
     ended = success | unstable | stop | settled | out_of_time
     return Ends(success, unstable, settled, ended)
@@ -190,14 +195,15 @@ def result(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos,
 
 def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
             state: TrialState, meas: PeriodMeasurement, period_steps: int = 1,
-            zero_nonfinite: bool = True):  # fmt: skip
+            zero_nonfinite: bool = True, going=None):  # fmt: skip
     """(state, torques (..., n), wrench (..., 6)): one period of trials that go on, a period of
     `period_steps` physics steps (module docstring).
 
     wrench: what the compliance sees (goal frame, at the tcp), after the F/T pipeline and the
     damping. zero_nonfinite: a non-finite torque becomes 0 (the engines, whose end tests then
-    see the physics); False: returned as it is (the robot runtime stops the arm on it). On NumPy
-    the chatter ring is written in place (`array_api.ring_write`).
+    see the physics); False: returned as it is (the robot runtime stops the arm on it). The
+    chatter ring is written in place on NumPy (`array_api.ring_write`), and only for the trials
+    `going` (...,) bool (None: all), so that the ring of a trial that ends keeps its chatter.
     """
     xp = namespace_of(meas.ft, meas.qvel)
     step, goal_rot = state.step, consts.skill.goal_rot
@@ -209,7 +215,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     # Chatter: |F_k - F_(k-1)| of the true axial force (the world force along goal z).
     f_world = xp.sum(meas.ft_rot * true[..., None, :3], axis=-1)
     axial = xp.sum(goal_rot[..., :, 2] * f_world, axis=-1)
-    ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), step >= 1)
+    written = step >= 1 if going is None else (step >= 1) & going
+    ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), written)
     lever = meas.ft_pos - meas.tcp_pos
     wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
     a = config.coupling_pole**period_steps  # a first-order lag held over n steps
@@ -251,9 +258,10 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
 def period(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
     """(ends, state, torques, wrench): `ends` then `advance` at one measurement. The state and
-    torques of a trial that ended are those it would have had: the caller keeps or drops them."""
+    torques of a trial that ended are those it would have had (but its chatter ring, as it was):
+    the caller keeps or drops them."""
     end = ends(config, consts, state, meas.tip_pos, meas.qvel)
-    return (end, *advance(config, control, basis, consts, state, meas))
+    return (end, *advance(config, control, basis, consts, state, meas, going=~end.ended))
 
 
 __all__ = [

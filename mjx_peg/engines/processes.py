@@ -57,9 +57,9 @@ def _start_worker(progress_queue, parent: int) -> None:
 
 
 def _run_shard(specs, params, config, threads, options) -> TrialResult:
-    from mjx_peg.engines import lanes
+    from mjx_peg.engines import threaded
 
-    return lanes.run_in_threads(
+    return threaded.run_in_threads(
         specs, params, config, threads=threads, progress=_progress_queue.put, **options
     )
 

@@ -2,7 +2,7 @@
 
 `mujoco.run_on_cpu(..., ray=ADDRESS)` joins a cluster (`"auto"`: the one `ray start` runs on
 this node; `"local"`: starts one on this machine; else `HOST:PORT`), keeps one actor per CPU the
-cluster offers (`Lane`: each runs `lanes.run_in_threads` on its share in-process, keeping its
+cluster offers (`Lane`: each runs `threaded.run_in_threads` on its share in-process, keeping its
 `mujoco.batch` simulations warm between calls, as a worker process of `engines/processes.py`
 does), splits the trials into interleaved pieces (trial k to piece k mod P: one per actor,
 up to four per actor for large calls), hands each actor the next piece as it finishes one, and
@@ -53,9 +53,9 @@ class Lane:
     process (its simulations stay warm between calls)."""
 
     def run(self, specs: TrialSpec, params: ControllerParams, config: TrialConfig, options):
-        from mjx_peg.engines import lanes
+        from mjx_peg.engines import threaded
 
-        return lanes.run_in_threads(specs, params, config, threads=1, **options)
+        return threaded.run_in_threads(specs, params, config, threads=1, **options)
 
     def pid(self) -> int:
         import os

@@ -19,7 +19,9 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
-from mjx_peg.engines.jacobian import chain_is_every_dof, dense_mass_index
+from mjx_peg.array_api import matvec
+from mjx_peg.engines import period
+from mjx_peg.engines.jacobian import chain_is_every_dof, dense_mass_index, jacobians
 from mjx_peg.world import constants, scene
 from mjx_peg.world.task import TrialSpec
 
@@ -52,6 +54,32 @@ class Measured(NamedTuple):
     cdof_dot: np.ndarray  # (n, 6, 6)
     cvel: np.ndarray  # (n, 6) of the tcp's body
     com: np.ndarray  # (n, 3) subtree com of its root
+
+
+def physics_ok(time, step, timestep: float):
+    """(n,) bool: the simulations' clocks `time` (n,) are where `step` (n,) control periods put
+    them (MuJoCo resets MjData, time back to 0, when its accelerations blow up)."""
+    return ~(abs(time - step * timestep) > 0.5 * timestep)
+
+
+def period_measurement(m: Measured) -> period.PeriodMeasurement:
+    """The period's measurement of rows `m` (NumPy or JAX): the tcp Jacobian and Jd qd from cdof
+    (`jacobian.jacobians`), the sites' poses, the F/T reading, H and h."""
+    tcp_pos = m.site_pos[:, 0]
+    jac, jac_dot = jacobians(m.cdof, m.cdof_dot, m.cvel, m.com, tcp_pos)
+    return period.PeriodMeasurement(
+        qvel=m.qvel,
+        tcp_pos=tcp_pos,
+        tcp_rot=m.site_rot[:, 0],
+        tip_pos=m.site_pos[:, 1],
+        ft=m.ft,
+        ft_rot=m.site_rot[:, 1],
+        ft_pos=m.site_pos[:, 2],
+        jac=jac,
+        jdot_qdot=matvec(jac_dot, m.qvel),
+        mass=m.mass,
+        bias=m.bias,
+    )
 
 
 class Sims:
@@ -121,11 +149,14 @@ class Sims:
         except mujoco.batch.SimulationError:
             pass  # those simulations kept their state: their time check fails (unstable)
 
-    def measure(self, ids: np.ndarray) -> Measured:
-        """The bound fields of simulations `ids` (sorted): one gather per field (no copy of the
-        fields that need none when `ids` are all the simulations)."""
+    def measure(self, ids: np.ndarray, pad: int = 0) -> Measured:
+        """The bound fields of simulations `ids` (sorted), and `pad` more rows that repeat the
+        last: one gather per field (no copy of the fields that need none when `ids` are all the
+        simulations)."""
         take = np.take
-        if len(ids) == self.nsim:
+        if pad:
+            ids = np.concatenate([ids, np.full(pad, ids[-1], ids.dtype)])
+        if len(ids) == self.nsim and not pad:
             rows = lambda a: a  # noqa: E731
         else:
             rows = lambda a: take(a, ids, axis=0)  # noqa: E731

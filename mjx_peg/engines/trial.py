@@ -83,7 +83,7 @@ class TrialConfig:
     # joint speed over a window of settle_window_s has matched the previous window's within
     # settle_tip_m, settle_force_n, settle_moment_nm and settle_joint_speed, settle_windows times
     # in a row: the arm is at rest, or repeats the same oscillation (a peg chattering on the board
-    # top).
+    # top); or a settle window after the search withdrew the peg (`search.search_withdrawn`).
     # end_settled=False runs every failure to the time limit, the paper's protocol.
     end_settled: bool = True
     # s: twice the DMP's 2 s movement (dmp.DMPConfig.duration); the phase is then

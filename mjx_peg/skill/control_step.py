@@ -53,6 +53,7 @@ import importlib
 import math
 from typing import NamedTuple
 
+from mjx_peg.array_api import matvec
 from mjx_peg.skill import dmp, osc
 from mjx_peg.skill.params import ControllerParams
 from mjx_peg.skill.search import SearchValues, SkillConfig, bounded_press, searched_offset
@@ -110,12 +111,12 @@ def wrench_to_goal(wrench_site, rot_site, lever_world, goal_rot):
     would become a moment that tilts the peg.
     """
     xp = wrench_site.__array_namespace__()
-    f_world = (rot_site @ wrench_site[..., :3, None])[..., 0]
-    m_world = (rot_site @ wrench_site[..., 3:, None])[..., 0]
+    f_world = matvec(rot_site, wrench_site[..., :3])
+    m_world = matvec(rot_site, wrench_site[..., 3:])
     m_world = m_world + xp.linalg.cross(lever_world, f_world)
     to_goal = xp.matrix_transpose(goal_rot)
-    f_goal = (to_goal @ f_world[..., None])[..., 0]
-    m_goal = (to_goal @ m_world[..., None])[..., 0]
+    f_goal = matvec(to_goal, f_world)
+    m_goal = matvec(to_goal, m_world)
     return xp.concat([f_goal, m_goal], axis=-1)
 
 
@@ -199,7 +200,7 @@ def deadband(wrench, force: float, moment: float):
 def skill_torque(config: ControlConfig, skill: SkillConsts, basis: Basis, meas: Measurement):
     """(..., n) joint torques of the compliant DMP for one control period (Eqs. 2, 6, 10-14),
     with the contact search of `config.search` where it is on (skill/search.py)."""
-    tcp_vel = (meas.jac @ meas.qvel[..., None])[..., 0]
+    tcp_vel = matvec(meas.jac, meas.qvel)
     y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
     t = meas.t
     if skill.search is not None:  # the fitted movement played at the trial's duration

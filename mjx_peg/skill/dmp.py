@@ -50,7 +50,7 @@ import dataclasses
 import importlib
 import math
 
-from mjx_peg.array_api import namespace_of
+from mjx_peg.array_api import matvec, namespace_of
 from mjx_peg.errors import UsageError
 
 WIDTH_PER_GAP = 0.3  # basis width sigma_i over the distance between neighbouring centres
@@ -149,7 +149,7 @@ def stiffness_diag(k_t, k_theta):
 
 def compliance_offset(compliance, wrench):
     """(..., 6) dy = C F = K_c^-1 F (Eq. 6); compliance C (..., 6, 6), wrench F (..., 6)."""
-    return (compliance @ wrench[..., None])[..., 0]
+    return matvec(compliance, wrench)
 
 
 def coupling_term(k_y, compliance, wrench):

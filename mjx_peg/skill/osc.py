@@ -14,13 +14,8 @@ module imports neither numpy nor jax.
 
 from __future__ import annotations
 
-from mjx_peg.array_api import namespace_of
+from mjx_peg.array_api import matmul, matvec, namespace_of, solve_spd
 from mjx_peg.world.rotations import rotvec_from_matrix
-
-
-def _matvec(mat, vec):
-    """(..., m) mat (..., m, n) @ vec (..., n)."""
-    return (mat @ vec[..., None])[..., 0]
 
 
 def _transpose(mat):
@@ -41,10 +36,10 @@ def task_state(pos_world, rot_world, vel_lin_world, vel_ang_world, goal_pos_worl
     """
     xp = namespace_of(pos_world, rot_world, goal_pos_world, goal_rot_world)
     rot_goal_t = _transpose(goal_rot_world)
-    x = _matvec(rot_goal_t, pos_world - goal_pos_world)
-    theta = rotvec_from_matrix(rot_goal_t @ rot_world)
-    xd = _matvec(rot_goal_t, vel_lin_world)
-    omega = _matvec(rot_goal_t, vel_ang_world)
+    x = matvec(rot_goal_t, pos_world - goal_pos_world)
+    theta = rotvec_from_matrix(matmul(rot_goal_t, rot_world))
+    xd = matvec(rot_goal_t, vel_lin_world)
+    omega = matvec(rot_goal_t, vel_ang_world)
     return xp.concat([x, theta], axis=-1), xp.concat([xd, omega], axis=-1)
 
 
@@ -55,8 +50,8 @@ def world_from_task_accel(ydd_task, goal_rot_world):
     pdd = R_g xdd, omegad = R_g (d/dt of the angular part of yd).
     """
     xp = namespace_of(ydd_task, goal_rot_world)
-    lin = _matvec(goal_rot_world, ydd_task[..., :3])
-    ang = _matvec(goal_rot_world, ydd_task[..., 3:])
+    lin = matvec(goal_rot_world, ydd_task[..., :3])
+    ang = matvec(goal_rot_world, ydd_task[..., 3:])
     return xp.concat([lin, ang], axis=-1)
 
 
@@ -64,7 +59,7 @@ def damped_gram(jac, damping):
     """(..., 6, 6) J J^T + lambda^2 I of jac (..., 6, n): the matrix `damped_pinv` inverts."""
     xp = namespace_of(jac)
     m = jac.shape[-2]
-    return jac @ _transpose(jac) + (damping**2) * xp.eye(m, dtype=jac.dtype)
+    return matmul(jac, _transpose(jac)) + (damping**2) * xp.eye(m, dtype=jac.dtype)
 
 
 def damped_pinv(jac, damping):
@@ -92,11 +87,10 @@ def osc_torque(mass_matrix, jac, jdot_qdot, bias, ydd_des, damping):
     [linear, angular] tcp acceleration in the world frame, e.g. `world_from_task_accel` of
     `dmp.dmp_acceleration`; damping lambda of `damped_pinv`.
     """
-    xp = namespace_of(mass_matrix, jac, jdot_qdot, bias, ydd_des)
     gram = damped_gram(jac, damping)
     # qdd = J+ (ydd - Jd qd) with one solve instead of an explicit inverse.
-    qdd = _matvec(_transpose(jac), xp.linalg.solve(gram, (ydd_des - jdot_qdot)[..., None])[..., 0])
-    return _matvec(mass_matrix, qdd) + bias
+    qdd = matvec(_transpose(jac), solve_spd(gram, ydd_des - jdot_qdot))
+    return matvec(mass_matrix, qdd) + bias
 
 
 def clamp_torque(u, limits):

@@ -454,6 +454,17 @@ def spiral_state(config: SkillConfig, spiral, wrench, tcp_pos, goal_pos, goal_ro
     return xp.stack([tau, h_r, sigma], axis=-1)
 
 
+def search_withdrawn(config: SkillConfig, spiral, hold: float):
+    """(...,) bool: the search has given up and withdrawn the peg, `hold` s ago: the spiral's
+    resting time tau (`spiral_state`, (..., 3)) is past tau_b + T_w + hold. The goal then stays
+    h_w above the estimated entrance, the spiral stopped: the peg cannot go in any more. False
+    without a spiral or a budget."""
+    xp = namespace_of(spiral)
+    if config.spiral_speed == 0.0 or not math.isfinite(config.search_budget):
+        return xp.zeros(spiral.shape[:-1], dtype=bool)
+    return spiral[..., 0] >= config.search_budget + config.withdraw_s + hold
+
+
 def spiral_path(config: SkillConfig, tau, values: SearchValues | None = None):
     """(..., 2) the spiral's goal offset s (goal frame x, y; m) after a resting time tau (...,):
     an Archimedean spiral about the hole's estimated axis run round its turns at the speed v,
@@ -515,6 +526,7 @@ __all__ = [
     "named_skill",
     "resting_gate",
     "search_values",
+    "search_withdrawn",
     "searched_offset",
     "skill_config",
     "skill_description",

@@ -123,7 +123,3 @@ def test_a_lane_option_is_a_positive_integer():
     for bad in (0, -1, 1.5, True, "2"):
         with pytest.raises(ValueError, match="threads must be a positive integer"):
             lanes.count("threads", bad, 1)
-    specs = _specs("square", 2, seed=8)
-    with pytest.raises(ValueError, match="an observer runs in the lane's thread"):
-        lanes.run_in_threads(specs, baseline_params(), TrialConfig(), threads=2,
-                             observer=lambda *a: None)  # fmt: skip

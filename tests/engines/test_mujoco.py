@@ -138,15 +138,23 @@ def test_settled_trials_end_early_with_the_outcome_of_the_full_run():
 
 
 def test_engine_never_imports_jax():
-    """The CPU engine imports only NumPy, MuJoCo and the trial definition."""
+    """The CPU engine imports only NumPy, MuJoCo and the trial definition; its NumPy pass runs
+    without JAX (the compiled pass imports it when it runs)."""
+    import os
     import subprocess
     import sys
 
     code = (
         "import sys; import mjx_peg.engines.mujoco, mjx_peg.engines.lanes; "
+        "from mjx_peg.engines import run_trials; from mjx_peg.engines.trial import TrialConfig; "
+        "from mjx_peg.skill.baseline import baseline_params; "
+        "from mjx_peg.world.task import TaskConfig, sample_trials; "
+        "run_trials(sample_trials(TaskConfig(), 0, 2), baseline_params(), 'mujoco', "
+        "TrialConfig(time_limit_s=0.01)); "
         "sys.exit(any(m == 'jax' or m.startswith('jax.') for m in sys.modules))"
     )
-    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+    env = dict(os.environ, MJX_PEG_CONTROL_PASS="numpy")
+    assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
     with pytest.raises(ValueError, match="observer"):
         run_trials(_specs("square", 2, seed=8), baseline_params(), engine="mujoco",
                    observer=lambda *a: None, threads=2)  # fmt: skip
