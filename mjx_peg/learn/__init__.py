@@ -1,4 +1,5 @@
-"""Learning the 38 numbers with Brax's PPO, one trial per environment step.
+"""Learning the skill's numbers (the 38 controller numbers and the contact search's 9) with
+Brax's PPO, one trial per environment step.
 
 config.py       TrainConfig and the presets (TrainConfig() is `quick`)
 env.py          the Brax environment: one step = one trial on an engine

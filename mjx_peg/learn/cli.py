@@ -1,4 +1,4 @@
-"""`python train.py`: learn the 38 controller numbers with Brax PPO (presets in learn/config.py).
+"""`python train.py`: learn the skill's 47 numbers with Brax PPO (presets in learn/config.py).
 
     python train.py                                  # the quick preset, on the CPU
     python train.py --preset paper --out runs/paper  # the paper's training conditions
@@ -111,7 +111,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--action-map",
         choices=ACTION_MAPS,
-        help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
+        help="how the policy's action becomes its numbers (default centred: action 0 is the "
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     p.add_argument(

@@ -32,7 +32,7 @@ from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
 OBS_STATISTICS = ("running", "context")
-# How the policy's unbounded action becomes the 38 numbers (skill/params.py): "centred" puts
+# How the policy's unbounded action becomes its numbers (skill/params.py): "centred" puts
 # action 0 at the baseline with the sensitivity of a range's middle in both directions;
 # "sigmoid" (the first runs' map) centres each number's range instead, and the
 # baseline's k_t, k_theta and translational compliance sit on its flat edge there.

@@ -1,4 +1,4 @@
-"""The policy network's deterministic forward pass: observation -> 38 controller numbers.
+"""The policy network's deterministic forward pass: observation -> the skill's numbers.
 
 The network is Brax PPO's policy MLP (`brax.training.agents.ppo.networks`, distribution
 "normal" with a state-independent std): hidden Dense layers with swish activations, a linear

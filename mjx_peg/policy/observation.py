@@ -1,8 +1,9 @@
 """What the policy sees of a trial: the estimated hole pose and the part, in one of two layouts.
 
 The paper's network maps the hole's estimated pose, shape and size to the 38 controller numbers
-(section 4.3). Everything here is what the robot knows before it moves: the vision estimate of
-the hole (never the true pose) and the part it holds. Features are scaled to O(1) by fixed,
+(section 4.3); ours also to the contact search's constants. Everything here is what the robot
+knows before it moves: the vision estimate of the hole (never the true pose) and the part it
+holds. Features are scaled to O(1) by fixed,
 documented constants, so a value never seen in training (a 60 mm peg, a triangle) is a bounded
 input rather than a division by a near-zero running std. Two layouts (`LAYOUTS`); a policy's
 manifest records the one it was trained with:
