@@ -20,7 +20,9 @@ RANKS = {
     "file_versions": 0,  # reading files of earlier versions
     "cores": 0,
     "array_api": 0,  # the array namespace
+    "signals": 0,  # how a program stops on SIGINT / SIGTERM
     "cli": 1,
+    "inputs": 1,  # reading a file someone gave us
     "outdir": 2,  # the resumable output directory, over cli's atomic writes
     "world": 2,
     "skill": 3,

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, inputs
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
@@ -74,17 +73,23 @@ class RunDir:
         self.out = OutDir(self.path, self.config_path.name, "training run", read=_recorded)
 
     def is_finished(self) -> bool:
-        try:
-            return bool(json.loads(self.manifest_path.read_text()).get("finished"))
-        except (OSError, ValueError):
+        if not self.manifest_path.exists():
             return False
+        manifest = inputs.read_json(self.manifest_path, "a policy manifest")
+        return isinstance(manifest, dict) and manifest.get("finished") is True
 
     def read_config(self) -> TrainConfig:
+        if not self.config_path.exists():
+            raise UsageError(f"{self.path} is not a training run (it holds no config.json)")
+        doc = inputs.read_json(self.config_path, "a training run's config")
         try:
-            return TrainConfig.from_json(json.loads(self.config_path.read_text()))
-        except (OSError, ValueError, TypeError) as e:
+            if not isinstance(doc, dict):
+                raise TypeError("not an object")
+            return TrainConfig.from_json(doc)
+        except (ValueError, TypeError, AttributeError) as e:
             raise UsageError(
-                f"{self.path} is not a training run ({self.config_path.name}: {e})"
+                f"{self.path} is not a training run ({self.config_path.name}: "
+                f"{cli.message(e)[:100]})"
             ) from None
 
     def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
