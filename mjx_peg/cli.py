@@ -18,16 +18,19 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import functools
 import math
 import os
 import re
+import signal
 import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+from mjx_peg import signals
 from mjx_peg.cores import cores
 from mjx_peg.errors import UsageError
 
@@ -43,10 +46,24 @@ def _shown(text) -> str:
     return text if len(text) <= _SHOWN else text[: _SHOWN - 5] + "...'"
 
 
+def number_text(x: float) -> str:
+    """`x` as short as it reads back exactly: 500.0001 stays 500.0001, 50.0 is 50."""
+    return f"{x:g}" if float(f"{x:g}") == x else repr(x)
+
+
+def shown_path(path, limit: int = 120) -> str:
+    """`path` as text, its middle cut out if longer than `limit` characters."""
+    text = str(path)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit // 2]}...{text[-(limit // 2 - 3) :]} ({len(text):,} characters)"
+
+
 def message(error) -> str:
     """One line for an exception or a message: OS errors name their file."""
     if isinstance(error, OSError) and error.strerror:
-        where = " -> ".join(str(f) for f in (error.filename, error.filename2) if f is not None)
+        files = (error.filename, error.filename2)
+        where = " -> ".join(shown_path(f) for f in files if f is not None)
         error = f"{where}: {error.strerror}" if where else error.strerror
     return " ".join(str(error).split()) or type(error).__name__
 
@@ -64,30 +81,61 @@ def note(prog: str, text: str) -> None:
 
 def entry(prog: str, interrupted: str = "interrupted") -> Callable:
     """Decorate a CLI's main(argv) -> int: every user error is one line and exit status 2, an
-    argparse exit returns its status, Ctrl-C is one line and 130. Other exceptions (bugs) keep
-    their traceback. The CPU engine's worker processes, if the command started them, stop when
-    it returns (a main() called from Python leaves none behind)."""
+    argparse exit returns its status, Ctrl-C is one line and 130 (SIGTERM: 143). Other
+    exceptions (bugs) keep their traceback. Called as the program (argv None), the command takes
+    SIGINT and SIGTERM first thing (`signals`): until it starts working a signal ends it at
+    once, after that it unwinds. The CPU engine's worker processes, if the command started them,
+    stop when it returns (a main() called from Python leaves none behind)."""
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
         def run(argv=None) -> int:
+            program = argv is None
+            if program:
+                signals.install(prog)
+                _printable_streams()
+            code = None
             try:
-                return main(argv)
+                code = main(argv)
             except SystemExit as exc:  # argparse: --help (0) or Parser.error (2, printed)
-                return exc.code if isinstance(exc.code, int) else fail(prog, exc.code)
+                code = exc.code if isinstance(exc.code, int) else fail(prog, exc.code)
             except USER_ERRORS as exc:
-                return fail(prog, exc)
-            except KeyboardInterrupt:
-                print(f"{prog}: {interrupted}", file=sys.stderr)
-                return EXIT_INTERRUPTED
+                code = fail(prog, exc)
+            except KeyboardInterrupt as exc:
+                stopped = isinstance(exc, signals.Terminated)
+                print(f"{prog}: {'terminated' if stopped else interrupted}", file=sys.stderr)
+                code = signals.EXIT_STATUS[signal.SIGTERM if stopped else signal.SIGINT]
             finally:
                 workers = sys.modules.get("mjx_peg.engines.processes")
                 if workers is not None:
                     workers.shutdown()
+                if program:
+                    code = _after_signal(prog, code)
+                    signals.uninstall()
+            return code
 
         return run
 
     return wrap
+
+
+def _printable_streams() -> None:
+    """stdout and stderr write what their encoding cannot (a "±" under PYTHONIOENCODING=ascii)
+    as an escape instead of failing."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
+
+
+def _after_signal(prog: str, code: int | None) -> int | None:
+    """The exit status of a command that a signal stopped: one a KeyboardInterrupt swallowed
+    somewhere below still ends as stopped, saying so once."""
+    got = signals.received()
+    if got is None:
+        return code
+    if code not in signals.EXIT_STATUS.values():
+        print(f"{prog}: {signals.WORD[got]}", file=sys.stderr)
+    return signals.EXIT_STATUS[got]
 
 
 class Parser(argparse.ArgumentParser):
@@ -98,6 +146,12 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):
         # "argument --size: must be ..." reads "--size must be ..."
         message = re.sub(r"^argument (\S+?)(?:/\S+)?: (?=must )", r"\1 ", message)
+        # "--hole -450,120,30": argparse takes the value for an option and wants one
+        message = re.sub(
+            r"^argument (--\S+?)(?:/\S+)?: expected one argument$",
+            r"\1 expects a value; one that starts with '-' is written \1=-VALUE",
+            message,
+        )
         raise SystemExit(fail(self.prog, message))
 
     def add_argument(self, *args, **kwargs):
@@ -140,7 +194,7 @@ def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[
             x = math.nan
         ok = math.isfinite(x) and (lo < x if lo_open else lo <= x) and x <= hi
         if not ok:
-            got = _shown(value) if not math.isfinite(x) else f"{x:g}"
+            got = _shown(value) if not math.isfinite(x) else number_text(x)
             raise argparse.ArgumentTypeError(f"must be a number in {text}, got {got}")
         return x
 
@@ -197,12 +251,31 @@ def add_skill_option(parser: argparse.ArgumentParser, skills, default: str | Non
     )
 
 
+def ray_address(text: str) -> str:
+    """argparse type of --ray: `auto`, `local` or HOST:PORT (a port in 1..65535, in ASCII
+    digits); the address as given."""
+    text = str(text).strip()
+    if text in ("auto", "local"):
+        return text
+    host, _, port = text.rpartition(":")
+    shown = _shown(text)
+    if not host or not port:
+        raise argparse.ArgumentTypeError(f"must be auto, local or HOST:PORT, got {shown}")
+    if not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        raise argparse.ArgumentTypeError(f"must end in a port 1..65535, got {shown}")
+    return text
+
+
+ray_address.range_text = "auto, local or HOST:PORT with a port in 1..65535"
+
+
 def add_ray_option(parser: argparse.ArgumentParser) -> None:
     """--ray [ADDRESS]: the CPU engine's trials on a Ray cluster (train.py, eval.py)."""
     parser.add_argument(
         "--ray",
         nargs="?",
         const="local",
+        type=ray_address,
         metavar="ADDRESS",
         help="CPU engine: run the trials on a Ray cluster, one lane per CPU, the same results "
         "(auto: the cluster `ray start` runs on this node; HOST:PORT: another; no address: a "
@@ -253,8 +326,16 @@ def nonempty_path(text: str) -> Path:
     path = Path(text)
     try:
         path.resolve()  # Python 3.11 raises RuntimeError on a symlink loop, 3.13 OSError
-    except (RuntimeError, OSError):
-        raise argparse.ArgumentTypeError(f"{text!r} is a symbolic link loop") from None
+        path.exists()
+    except RuntimeError:
+        raise argparse.ArgumentTypeError(f"{shown_path(text)!r} is a symbolic link loop") from None
+    except OSError as e:
+        why = (
+            "is a symbolic link loop"
+            if e.errno == errno.ELOOP
+            else f"cannot be used ({e.strerror})"
+        )
+        raise argparse.ArgumentTypeError(f"{shown_path(text)!r} {why}") from None
     return path
 
 

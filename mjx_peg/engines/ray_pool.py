@@ -16,11 +16,13 @@ read from disk. Ray is imported only here, and only when asked for (`pip install
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import sys
 import warnings
 from collections.abc import Callable
 
+from mjx_peg import cli
 from mjx_peg.engines.processes import interleaved, merge, take_params
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.errors import UsageError
@@ -101,9 +103,11 @@ def _reachable(address: str, timeout_s: float = 5.0) -> None:
     """ClusterError unless HOST:PORT accepts a TCP connection (Ray itself waits minutes)."""
     import socket
 
+    try:
+        cli.ray_address(address)
+    except argparse.ArgumentTypeError as error:
+        raise ClusterError(f"a Ray address {error}") from None
     host, _, port = address.rpartition(":")
-    if not host or not port.isdigit():
-        raise ClusterError(f"a Ray address is auto, local or HOST:PORT, got {address!r}")
     try:
         socket.create_connection((host, int(port)), timeout=timeout_s).close()
     except OSError as error:

@@ -18,17 +18,10 @@ import argparse
 import pathlib
 import sys
 
-import numpy as np
-
 from mjx_peg import cli
-from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS, frame_strip, plot_trial, run_demo
-from mjx_peg.policy.export import policy_skill
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import skill_config
 from mjx_peg.world import constants
-from mjx_peg.world.task import TaskConfig, TrialSpec, sample_trials
 
 PROG = "mjx-peg-demo"
 _DEFAULTS = {
@@ -43,6 +36,8 @@ _DEFAULTS = {
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS
+
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
     p.add_argument("--shape", choices=constants.SHAPES, help=f"default {d['shape']}")
@@ -107,8 +102,13 @@ def _controller(policy: str):
     return load_controller(policy)
 
 
-def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
+def trial_from_args(args):
     """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.policy.export import policy_skill
+    from mjx_peg.skill.search import skill_config
+    from mjx_peg.world.task import TaskConfig, sample_trials
+
     for dest, value in _DEFAULTS.items():
         if getattr(args, dest) is None:
             setattr(args, dest, value)
@@ -123,9 +123,11 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
     return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 
 
-def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:
+def trial_from_eval(args):
     """Like `trial_from_args` for trial --trial of range --range of the evaluation --replay,
     plus what the evaluation recorded for that trial."""
+    import numpy as np
+
     from mjx_peg.evaluation import grid as evaluation
 
     given = ["--" + k.replace("_", "-") for k in _DEFAULTS if getattr(args, k) is not None]
@@ -186,6 +188,8 @@ def _outcome(success, time_s) -> str:
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from mjx_peg.evaluation.demo import OUTPUTS, frame_strip, plot_trial, run_demo
+
     if args.replay is None:
         if args.range is not None or args.trial != "0":
             raise UsageError("--range and --trial need --replay EVAL_DIR")

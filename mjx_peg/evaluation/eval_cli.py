@@ -9,46 +9,21 @@ its outputs; every rule of the grid itself lives in `evaluation/grid.py`.
 from __future__ import annotations
 
 import argparse
-import importlib
-import inspect
 import sys
 import time
 from collections.abc import Sequence
 
-from mjx_peg import cli
-from mjx_peg.engines import ENGINES, resolve_engine
+from mjx_peg import cli, signals
 from mjx_peg.errors import UsageError
-from mjx_peg.evaluation import stats as es
-from mjx_peg.evaluation.grid import (
-    DEFAULT_CHUNK_TRIALS,
-    DEFAULT_SHAPES,
-    GRID_FILE,
-    GRIDS,
-    MAX_ERROR,
-    PAPER_PNG,
-    PROG,
-    SUCCESS_PNG,
-    SUMMARY_FILE,
-    TIME_PNG,
-    EvalConfig,
-    grid_axes,
-    load_controller,
-    load_evaluation_grid,
-    parse_ranges,
-    prepare_out_dir,
-    range_path,
-    run_evaluation,
-    write_outputs,
-)
-from mjx_peg.policy.export import policy_skill
-from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import SKILLS
-from mjx_peg.world.constants import GRASP_MODELS
-from mjx_peg.world.task import SHAPES
+
+PROG = "eval.py"
 
 
 def check_engine_options(engine: str, options: dict) -> None:
     """ValueError unless the engine's run_trials takes every option by name."""
+    import importlib
+    import inspect
+
     impl = importlib.import_module(f"mjx_peg.engines.{engine}")
     params = inspect.signature(impl.run_trials).parameters
     takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
@@ -58,6 +33,12 @@ def check_engine_options(engine: str, options: dict) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.engines import ENGINES
+    from mjx_peg.evaluation import stats as es
+    from mjx_peg.evaluation.grid import DEFAULT_CHUNK_TRIALS, DEFAULT_SHAPES, GRIDS
+    from mjx_peg.skill.search import SKILLS
+    from mjx_peg.world.constants import GRASP_MODELS, SHAPES
+
     p = cli.Parser(
         prog=PROG,
         description="Evaluate a policy over a grid of error ranges (paper section 6): grid.csv, "
@@ -165,8 +146,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
+def config_from_args(args: argparse.Namespace, policy_label: str):
     """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
+    from mjx_peg.engines import resolve_engine
+    from mjx_peg.evaluation.grid import MAX_ERROR, EvalConfig, grid_axes, parse_ranges
+    from mjx_peg.policy.export import policy_skill
+    from mjx_peg.world.constants import SHAPES
+
     linear = None if args.linear_mm is None else parse_ranges(args.linear_mm, "--linear-mm")
     angular = None if args.angular_deg is None else parse_ranges(args.angular_deg, "--angular-deg")
     linear, angular, trials = grid_axes(
@@ -216,6 +202,22 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
 def main(argv: Sequence[str] | None = None) -> int:
     """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
     args = build_parser().parse_args(argv)
+    from mjx_peg.evaluation import stats as es
+    from mjx_peg.evaluation.grid import (
+        GRID_FILE,
+        PAPER_PNG,
+        SUCCESS_PNG,
+        SUMMARY_FILE,
+        TIME_PNG,
+        load_controller,
+        load_evaluation_grid,
+        prepare_out_dir,
+        range_path,
+        run_evaluation,
+        write_outputs,
+    )
+    from mjx_peg.policy.shipped import resolve_policy
+
     out = args.out
     policy = resolve_policy(args.policy)
     policy_label, controller = load_controller(policy)
@@ -238,11 +240,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif paper_name == "none":
         paper_name = None
     cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    with cli.exclusive(out):
-        if args.ray is not None:  # join the cluster before anything is written
-            from mjx_peg.engines import ray_pool
+    cli.check_out(out)
+    if args.ray is not None:  # join the cluster before anything is written
+        from mjx_peg.engines import ray_pool
 
-            ray_pool.connect(args.ray)
+        signals.working()  # Ray starts processes: a signal stops them
+        ray_pool.connect(args.ray)
+    with cli.exclusive(out):
         prepare_out_dir(
             out,
             config,

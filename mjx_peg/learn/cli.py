@@ -17,12 +17,8 @@ import argparse
 import os
 from pathlib import Path
 
-from mjx_peg import cli
-from mjx_peg.engines import ENGINES
+from mjx_peg import cli, signals
 from mjx_peg.errors import UsageError
-from mjx_peg.learn.config import ACTION_MAPS
-from mjx_peg.skill.search import SKILLS
-from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
 
@@ -32,7 +28,10 @@ MAX_NUM_ENVS = 65_536  # trials per iteration
 
 
 def parser() -> argparse.ArgumentParser:
-    from mjx_peg.learn.config import PRESETS
+    from mjx_peg.engines import ENGINES
+    from mjx_peg.learn.config import ACTION_MAPS, PRESETS
+    from mjx_peg.skill.search import SKILLS
+    from mjx_peg.world.constants import GRASP_MODELS
 
     p = cli.Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), help="default: quick")
@@ -184,6 +183,7 @@ def main(argv=None) -> int:
     if args.ray is not None:  # join the cluster before the run directory is written
         from mjx_peg.engines import ray_pool
 
+        signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
     summary = train(
         config,

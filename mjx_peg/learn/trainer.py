@@ -19,7 +19,7 @@ import jax.experimental.multihost_utils
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, signals
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import checkpoints, ppo
@@ -175,6 +175,7 @@ def train(
     initial = None
     if config.init_from and not resuming:
         initial = _load_init(config, state)  # read before `out` is touched
+    signals.working()  # from here a Ctrl-C unwinds: every finished iteration is kept
     if primary:
         run.prepare(config, plan, note)
     if jax.process_count() > 1:

@@ -23,19 +23,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from mjx_peg import cli
-from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import load_policy, policy_skill
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
-from mjx_peg.robot.sim_arm import SimArm
-from mjx_peg.skill.search import SKILLS, skill_config
+from mjx_peg.skill.search import SKILLS
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
-from mjx_peg.world.task import TaskConfig, sample_trials
 
 PROG = "python -m mjx_peg.robot"
 PHYSICS_HZ = 1.0 / constants.TIMESTEP
@@ -134,7 +127,7 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
     """Physics steps per command for a rate that divides the physics rate and whose period fits
     in `time_limit` (s); UsageError if not."""
     if not (math.isfinite(hz) and 0 < hz <= PHYSICS_HZ):
-        raise UsageError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {hz:g}")
+        raise UsageError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {cli.number_text(hz)}")
     if 1.0 / hz > time_limit:  # also every rate too small to divide by (5e-324 Hz)
         raise UsageError(
             f"--command-hz {hz:g} commands every {1.0 / hz:g} s, longer than the --time-limit "
@@ -144,12 +137,14 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
     if abs(PHYSICS_HZ / steps - hz) > 1e-3:
         raise UsageError(
             f"--command-hz must divide the {PHYSICS_HZ:g} Hz physics "
-            f"(500, 250, 166.7, 125, 100, ...), got {hz:g}"
+            f"(500, 250, 166.7, 125, 100, ...), got {cli.number_text(hz)}"
         )
     return steps
 
 
 def _setup(args):
+    from mjx_peg.world.task import TaskConfig
+
     steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
                                   grasp_model=args.grasp_model)  # fmt: skip
@@ -172,6 +167,10 @@ def _has_rows(path: Path) -> bool:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     real = args.robot_ip is not None or args.dry_run or args.rehearse
+    for flag, given in (("--model controller", args.model == "controller"),
+                        ("--friction-comp", args.friction_comp)):  # fmt: skip
+        if given and args.robot_ip is None and not args.rehearse:
+            raise UsageError(f"{flag} asks a UR5e's controller: give --robot-ip (or --rehearse)")
     if real or args.shadow or args.hole:
         if args.robot_ip is not None:
             _check_host(args.robot_ip)
@@ -188,6 +187,14 @@ def main(argv=None) -> int:
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)
+    import numpy as np
+
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.policy.export import load_policy, policy_skill
+    from mjx_peg.robot import runtime, sim_arm
+    from mjx_peg.skill.search import skill_config
+    from mjx_peg.world.task import sample_trials
+
     task, steps = _setup(args)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
     # The output location, before any trial: never the policy, no earlier result replaced
@@ -201,8 +208,8 @@ def main(argv=None) -> int:
 
     mujoco_log.send_to(args.out)
     specs = sample_trials(task, args.seed, args.trials)
-    holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
-    vectors = [controller_vector(policy, hole) for hole in holes]
+    holes = [runtime.HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
+    vectors = [runtime.controller_vector(policy, hole) for hole in holes]
     search = skill_config(args.skill or policy_skill(policy))
     config = TrialConfig(time_limit_s=args.time_limit, search=search)
     rows, start = [], time.perf_counter()
@@ -217,9 +224,11 @@ def main(argv=None) -> int:
         f.flush()
         try:
             for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
-                arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height,
-                             actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
-                run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
+                arm = sim_arm.SimArm(specs, i, command_steps=steps,
+                                     success_height=config.success_height,
+                                     actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
+                skill = runtime.SkillRuntime(vector, hole, config)
+                run = runtime.run_skill(arm, skill, done=arm.inserted)
                 row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
                        int(run.protective_stop), int(run.stopped == "settled"),
                        f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip

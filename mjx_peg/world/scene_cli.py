@@ -9,7 +9,6 @@ from mjx_peg import cli
 from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 from mjx_peg.world.constants import SHAPES
-from mjx_peg.world.scene import build_mjcf, demo_pose, load_model
 
 PROG = "mjx-peg-scene"
 
@@ -47,9 +46,10 @@ def _parse(argv) -> argparse.Namespace:
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parse(argv)
-    import mujoco  # after world.scene, which chooses MuJoCo's GL back-end
+    import mujoco  # after mjx_peg (world.gl), which chooses MuJoCo's GL back-end
 
     from mjx_peg.world import mujoco_log, render
+    from mjx_peg.world.scene import build_mjcf, demo_pose, load_model
 
     mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
     size = args.size_mm / 1000.0
