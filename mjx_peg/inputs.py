@@ -49,8 +49,9 @@ def _open_regular(path, error) -> int:
     info = os.fstat(fd)
     if not stat.S_ISREG(info.st_mode):
         os.close(fd)
-        kind = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file"
-        _refuse(error, path, f"is {kind} (a FIFO, socket or device is never read)")
+        if stat.S_ISDIR(info.st_mode):
+            _refuse(error, path, "is a directory, not a file")
+        _refuse(error, path, "is not a regular file (a FIFO, socket or device is never read)")
     os.set_blocking(fd, True)
     return fd
 
@@ -110,12 +111,14 @@ def read_json(
     limit: int = MAX_JSON_BYTES,
     max_depth: int = MAX_JSON_DEPTH,
     error: type[Exception] = UsageError,
+    allow_nan: bool = False,
 ):
     """The JSON document in `path`: a regular UTF-8 file of at most `limit` bytes, nesting at
-    most `max_depth` deep, without NaN or Infinity; `what` names it in the message."""
+    most `max_depth` deep, without NaN or Infinity (unless `allow_nan`); `what` names it in the
+    message."""
     text = read_text(path, limit, error)
     try:
-        doc = json.loads(text, parse_constant=_no_constant)
+        doc = json.loads(text, **({} if allow_nan else {"parse_constant": _no_constant}))
     except RecursionError:
         _refuse(error, path, f"is not {what}: nested deeper than {max_depth} levels")
     except ValueError as e:

@@ -58,6 +58,14 @@ def _recorded(doc: dict) -> dict:
     return TrainConfig.from_json(doc).to_json()
 
 
+MAX_TABLE_BYTES = 2**31  # metrics.csv or trials.csv (10,000,000 trials: ~300 MB)
+
+
+def _parses(row: list[str], width: int, index: int) -> bool:
+    """Whether a table row is whole: `width` fields, an integer at `index`."""
+    return len(row) == width and row[index].strip().isdigit()
+
+
 class RunDir:
     """Paths and bookkeeping of one run directory."""
 
@@ -116,9 +124,10 @@ class RunDir:
 
     def start_tables(self) -> None:
         tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS))
-        for path, columns in tables:
-            with open(path, "w", newline="") as f:
-                csv.writer(f).writerow(columns)
+        for path, columns in tables:  # whole or not at all: a full disk leaves no empty table
+            text = io.StringIO(newline="")
+            csv.writer(text).writerow(columns)
+            cli.write_atomic(path, text.getvalue())
 
     def truncate_tables(self, trials: int) -> None:
         """Drop rows written after the checkpoint that holds `trials` trials."""
@@ -127,8 +136,9 @@ class RunDir:
             return
         for path, column in ((self.metrics_path, "trials"), (self.trials_path, "trial")):
             try:
-                with open(path, newline="") as f:
-                    rows = list(csv.reader(f))
+                rows = list(csv.reader(io.StringIO(inputs.read_text(path, MAX_TABLE_BYTES))))
+                if not rows:  # an empty table (a full disk before its header): start it again
+                    rows = [list(METRICS_COLUMNS if path == self.metrics_path else TRIALS_COLUMNS)]
                 header, body = rows[0], rows[1:]
                 if path == self.metrics_path:  # an older run: columns added since, left empty
                     for name, after in _ADDED_METRICS:
@@ -138,6 +148,8 @@ class RunDir:
                             body = [r[:at] + [""] + r[at:] for r in body]
                 i = header.index(column)
                 limit = trials if column == "trials" else trials - 1
+                if body and not _parses(body[-1], len(header), i):  # a failed append's row
+                    body = body[:-1]
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
             except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
                 raise UsageError(
@@ -149,7 +161,10 @@ class RunDir:
             cli.write_atomic(path, text.getvalue())
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
-        with open(self.trials_path, "a", newline="") as f:
-            csv.writer(f).writerows(trial_rows)
-        with open(self.metrics_path, "a", newline="") as f:
-            csv.writer(f).writerow(metrics_row)
+        """Append an iteration's rows (a resume cuts off rows a failed append left behind)."""
+        for path, rows in ((self.trials_path, trial_rows), (self.metrics_path, [metrics_row])):
+            try:
+                with open(path, "a", newline="") as f:
+                    csv.writer(f).writerows(rows)
+            except OSError as e:  # a full disk: the error names the table
+                raise OSError(e.errno, e.strerror, str(path)) from None

@@ -184,6 +184,8 @@ def train(
         config.task(), config.trial(), config.engine, engine_options, config.map_centre()
     )
     manager = run.checkpoints()
+    if primary:
+        manager.drop_partial()
     if plan == "resume" and manager.latest_step() is not None:
         try:
             state = manager.restore(state)

@@ -156,11 +156,10 @@ def _setup(args):
 
 def _has_rows(path: Path) -> bool:
     """Whether a results file holds any result (more than a header)."""
-    try:
-        with open(path, "rb") as f:
-            return len(f.read(1 << 16).splitlines()) > 1
-    except FileNotFoundError:
-        return False
+    if not path.is_file():  # absent, or something that is not a file (kept, never read)
+        return path.exists() or path.is_symlink()
+    with open(path, "rb") as f:
+        return len(f.read(1 << 16).splitlines()) > 1
 
 
 @cli.entry(PROG)
@@ -218,35 +217,42 @@ def main(argv=None) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=len(specs), desc="trials", unit="trial", file=sys.stderr)
-    with open(results, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(COLUMNS)
-        f.flush()
-        try:
-            for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
-                arm = sim_arm.SimArm(specs, i, command_steps=steps,
-                                     success_height=config.success_height,
-                                     actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
-                skill = runtime.SkillRuntime(vector, hole, config)
-                run = runtime.run_skill(arm, skill, done=arm.inserted)
-                row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
-                       int(run.protective_stop), int(run.stopped == "settled"),
-                       f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
-                writer.writerow(row)
-                f.flush()  # a crash keeps every finished trial
-                rows.append(row)
+    try:
+        with open(results, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(COLUMNS)
+            f.flush()
+            try:
+                for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
+                    arm = sim_arm.SimArm(specs, i, command_steps=steps,
+                                         success_height=config.success_height,
+                                         actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
+                    skill = runtime.SkillRuntime(vector, hole, config)
+                    run = runtime.run_skill(arm, skill, done=arm.inserted)
+                    row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
+                           int(run.protective_stop), int(run.stopped == "settled"),
+                           f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
+                    writer.writerow(row)
+                    f.flush()  # a crash keeps every finished trial
+                    rows.append(row)
+                    if bar is not None:
+                        bar.update(1)
+            except KeyboardInterrupt:
+                print(
+                    f"{PROG}: interrupted after {len(rows)} of {len(specs)} trials; their rows are "
+                    f"in {results}",
+                    file=sys.stderr,
+                )
+                return cli.EXIT_INTERRUPTED
+            finally:
                 if bar is not None:
-                    bar.update(1)
-        except KeyboardInterrupt:
-            print(
-                f"{PROG}: interrupted after {len(rows)} of {len(specs)} trials; their rows are "
-                f"in {results}",
-                file=sys.stderr,
-            )
-            return cli.EXIT_INTERRUPTED
-        finally:
-            if bar is not None:
-                bar.close()
+                    bar.close()
+    except OSError as e:  # a full disk: named, and no runs.csv without a row left behind
+        if not rows:
+            results.unlink(missing_ok=True)
+        if e.filename is not None:
+            raise
+        raise OSError(e.errno, e.strerror, str(results)) from None
     ok = np.array([r[1] for r in rows], dtype=bool)
     times = np.array([float(r[2]) for r in rows])
     median = f"{np.median(times[ok]):.2f} s" if ok.any() else "-"

@@ -132,20 +132,36 @@ def _warn_gl() -> None:
 def _render(args) -> str:
     from mjx_peg.vision.dataset import SplitConfig, prepare_split, render_split
     from mjx_peg.world import mujoco_log
+    from mjx_peg.world.constants import SHAPES, SIZES_MM
 
+    known = ", ".join(f"{v:g}" for v in SIZES_MM)
     sizes = []
     for s in _csv(args.sizes):
         try:
-            sizes.append(float(s))
+            size = float(s)
         except ValueError:
-            raise UsageError(f"--sizes must be numbers of mm (of 25, 50, 60), got {s!r}") from None
+            size = None
+        if size not in SIZES_MM:
+            raise UsageError(f"--sizes must be sizes of mm of {known}, got {s[:20]!r}")
+        sizes.append(size)
+    shapes = _csv(args.shapes)
+    for shape in shapes:
+        if shape not in SHAPES:
+            raise UsageError(
+                f"--shapes must name shapes of {', '.join(SHAPES)}, got {shape[:20]!r}"
+            )
+    for flag, values in (("--sizes", sizes), ("--shapes", shapes)):
+        if not values or len(set(values)) != len(values):
+            raise UsageError(
+                f"{flag} must name distinct values, got {getattr(args, flag[2:])[:40]!r}"
+            )
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
         condition=args.condition,
         width=args.width,
         height=args.height,
-        shapes=_csv(args.shapes),
+        shapes=shapes,
         sizes_mm=tuple(sizes),
     )
     prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
@@ -158,13 +174,13 @@ def _render(args) -> str:
 def _train(args) -> str:
     import dataclasses
 
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
     cli.check_apart(args.out, {"--data": args.data, "--val": args.val})
-    split_config(args.data)  # a split, before any work
+    split_items(args.data)  # a split with readable labels, before any work
     if args.val is not None:
-        split_config(args.val)
+        split_items(args.val)
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
@@ -180,13 +196,13 @@ def _train(args) -> str:
 
 
 def _evaluate(args) -> str:
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.localizer import Localizer
     from mjx_peg.vision.metrics import REPORT_FILES, evaluate_to
 
     cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
-    split_config(args.data)
+    split_items(args.data)
     cli.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, PROG)
     cli.prepare_dir(args.out)
     report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
@@ -233,6 +249,10 @@ def _act(args) -> str:
     from mjx_peg.world import mujoco_log
 
     loc = Localizer.load(args.model)
+    if args.policy != "baseline":
+        from mjx_peg.policy.export import load_policy
+
+        load_policy(args.policy)  # a readable policy, before --out is touched
     cli.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, PROG)
     cli.prepare_dir(args.out)
     mujoco_log.send_to(args.out)
@@ -260,13 +280,13 @@ def _act(args) -> str:
 
 
 def _figures(args) -> str:
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.figures import FIGURES, write_figures
     from mjx_peg.vision.localizer import Localizer
 
     cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
-    split_config(args.data)
+    split_items(args.data)
     cli.refuse_or_move([args.out / name for name in FIGURES], args.force, PROG)
     cli.prepare_dir(args.out)
     _warn_gl()
