@@ -90,16 +90,23 @@ def _handle(signum, frame) -> None:
 def program() -> str | None:
     """The name of this process's program if it is one of this package's (a console script,
     train.py or eval.py beside the package, `python -m mjx_peg...`), else None."""
-    argv0 = sys.argv[0] if sys.argv else ""
-    if argv0 == "-m":  # the package is imported while `python -m` looks for the module
-        argv = getattr(sys, "orig_argv", [])
-        modules = [b for a, b in zip(argv, argv[1:], strict=False) if a == "-m"]
-        return f"python -m {modules[0]}" if modules and modules[0].startswith("mjx_peg") else None
-    name = os.path.basename(argv0)
+    # The command line the process was started with (a worker of multiprocessing's spawn has
+    # its parent's sys.argv, never its command line).
+    argv = list(getattr(sys, "orig_argv", sys.argv))[1:]
+    while argv and argv[0].startswith("-") and argv[0] != "-m":
+        if argv[0] == "-c":
+            return None
+        argv = argv[2:] if argv[0] in ("-X", "-W", "-Q") else argv[1:]
+    if not argv:
+        return None
+    if argv[0] == "-m":
+        module = argv[1] if len(argv) > 1 else ""
+        return f"python -m {module}" if module.startswith("mjx_peg") else None
+    name = os.path.basename(argv[0])
     if name in PROGRAMS:
         return name
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    if name in SCRIPTS and os.path.dirname(os.path.abspath(argv0)) == here:
+    if name in SCRIPTS and os.path.dirname(os.path.abspath(argv[0])) == here:
         return name
     return None
 

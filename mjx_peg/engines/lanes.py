@@ -379,6 +379,9 @@ class Lane:
                 sims.give_sims(scene_sims)
 
 
+LANE_STOP_S = 10.0  # a stopped lane ends within one control period; this is a bound
+
+
 def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
               observer=None, profile=None) -> None:  # fmt: skip
     """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process.
@@ -400,6 +403,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
             errors.append(exc)
             source.stop()
 
+    pool: list[threading.Thread] = []
     try:
         if threads == 1:
             work(lanes[0], report=True)
@@ -413,6 +417,8 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
                     source.flush()
     except BaseException:  # KeyboardInterrupt: stop the lanes at their next period
         source.stop()
+        for t in pool:  # and wait for them: a lane still in MuJoCo at exit would crash it
+            t.join(timeout=LANE_STOP_S)
         raise
     source.flush()
     sims.keep_sims(set(count))

@@ -246,6 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
+    signals.working()  # from here a Ctrl-C keeps every finished range
     with cli.exclusive(out):
         prepare_out_dir(
             out,
