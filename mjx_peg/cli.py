@@ -309,6 +309,23 @@ def resolve_processes(value: int | None, engine: str) -> int | None:
     return value or None
 
 
+def check_jax() -> None:
+    """UsageError naming JAX_PLATFORMS if JAX cannot start a back-end (a GPU asked for where
+    there is none, an unknown name): training runs on JAX."""
+    import jax
+
+    try:
+        jax.devices()
+    except Exception as e:  # JAX raises RuntimeError, or fails an assertion, for these
+        platforms = os.environ.get("JAX_PLATFORMS")
+        why = " ".join(str(e).split())[:200] or type(e).__name__
+        where = f"JAX_PLATFORMS={platforms!r}" if platforms is not None else "JAX"
+        raise UsageError(
+            f"{where}: JAX cannot start a back-end ({why}); set JAX_PLATFORMS=cpu or leave it "
+            "unset"
+        ) from None
+
+
 MAX_RANGES = 10_000  # error ranges in one evaluation grid (the paper's has 350)
 MAX_AXIS = 1_000  # values of one grid axis
 MAX_GRID_TRIALS = 10_000_000  # trials in one evaluation grid (the paper's has 70,000)

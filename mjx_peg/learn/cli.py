@@ -173,6 +173,7 @@ def main(argv=None) -> int:
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
         cli.check_apart(out, {"--init-from": config.init_from})
+    cli.check_jax()
     if args.distributed:
         join_distributed()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted

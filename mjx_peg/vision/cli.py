@@ -181,6 +181,7 @@ def _train(args) -> str:
     split_items(args.data)  # a split with readable labels, before any work
     if args.val is not None:
         split_items(args.val)
+    cli.check_jax()  # the localizer trains on JAX
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
