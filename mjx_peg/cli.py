@@ -17,7 +17,6 @@ Imports nothing of the package, so a CLI can parse its arguments before importin
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import functools
 import math
@@ -414,35 +413,6 @@ def check_out(out, flag: str = "--out") -> None:
             return
 
 
-@contextlib.contextmanager
-def exclusive(out, flag: str = "--out"):
-    """Hold output directory `out` for this process while the block runs: a second process
-    asking for it gets one UsageError line. The lock (`.NAME.lock` beside `out`, so that --force
-    can move `out` aside) is an flock: the system drops it when its holder exits, crashed or
-    killed, so it never stays stuck."""
-    import fcntl
-
-    out = Path(out)
-    check_out(out, flag)  # a file where a folder must be: one line naming the flag, not mkdir's
-    lock = out.parent / f".{out.name}.lock"
-    lock.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
-            raise UsageError(
-                f"{flag} {out} is in use by another process (pid {holder}): wait for it to end "
-                f"or give another {flag}"
-            ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        yield out
-    finally:
-        os.close(fd)
-
-
 def partial_path(path) -> Path:
     """Where `path` is written before it is renamed into place (same suffix, hidden)."""
     path = Path(path)
@@ -461,6 +431,9 @@ def write_atomic(path, data: bytes | str | Callable[[Path], object]) -> Path:
             with open(tmp, "wb") as f:
                 f.write(data.encode() if isinstance(data, str) else data)
         os.replace(tmp, path)
+    except OSError as e:  # a full disk: the error names the file, not its partial copy
+        tmp.unlink(missing_ok=True)
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

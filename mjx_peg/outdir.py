@@ -15,13 +15,17 @@ different config (naming the keys that differ). Files are written whole or not a
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
+import os
+import stat
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, signals
 from mjx_peg.errors import UsageError
 
 _SHOWN = 60  # characters of a differing value quoted in a message
@@ -154,3 +158,117 @@ class OutDir:
         plan = self.plan(config, force)
         self.prepare(plan, config if document is None and plan != "resume" else document, note)
         return plan
+
+
+# -- one writer per output directory ------------------------------------------------------------
+
+
+def lock_path(out) -> Path:
+    """The lock of output directory `out`: `.NAME.lock` beside it (so that --force can move
+    `out` itself aside while it is held)."""
+    out = Path(out)
+    return out.parent / f".{out.name}.lock"
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """Create `folder` and its missing parents; the ones this call made, outermost first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    made = []
+    for path in reversed(missing):
+        try:
+            path.mkdir()
+            made.append(path)
+        except FileExistsError:  # made meanwhile by another process
+            pass
+    return made
+
+
+def _remove_if_empty(folders) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # not empty (or gone): kept
+            pass
+
+
+def _take_lock(lock: Path, where: str, flag: str) -> int:
+    """An open descriptor of `lock` holding its flock; UsageError if another process holds it
+    or if `lock` is not a lock file this command would make (a symbolic link, a file with other
+    hard links or of another user, a folder, a FIFO): nothing is written through those."""
+    import fcntl
+
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    not_ours = f"{where}: its lock {lock} is not a lock file of this program"
+    while True:
+        try:
+            fd = os.open(lock, flags, 0o644)
+        except OSError as e:
+            if e.errno in (errno.ELOOP, errno.EISDIR, errno.ENXIO, errno.EMLINK):
+                raise UsageError(f"{not_ours} ({e.strerror}); remove it") from None
+            raise OSError(e.errno, e.strerror, str(lock)) from None
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1 or info.st_uid != os.geteuid():
+            os.close(fd)
+            why = (
+                "not a regular file"
+                if not stat.S_ISREG(info.st_mode)
+                else ("it has other hard links" if info.st_nlink != 1 else "another user's")
+            )
+            raise UsageError(f"{not_ours} ({why}); remove it")
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise UsageError(
+                f"{where} is in use by another process (pid {holder[:12]}): wait for it to end "
+                f"or give another {flag}"
+            ) from None
+        try:  # the path may have been removed (or replaced) by a holder that just ended
+            now = os.stat(lock, follow_symlinks=False)
+        except FileNotFoundError:
+            now = None
+        if now is not None and (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino):
+            return fd
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def exclusive(out, flag: str = "--out"):
+    """Hold output directory `out` for this process while the block runs: a second process
+    asking for it gets one UsageError line naming `flag` and the process that holds it.
+
+    The lock (`lock_path`) is an flock: the system drops it when its holder ends, crashed or
+    killed, so it never stays stuck; it is opened without following a symbolic link, and only
+    a regular file of one link that this user owns is ever written (its holder's pid). It is
+    removed when the block ends. If the block fails, the folders made for the lock and an `out`
+    it made are removed again if empty: a refused input leaves nothing behind. From the moment
+    it is held the command is working (`signals.working`): a Ctrl-C unwinds, keeping what was
+    written."""
+    out = Path(out)
+    cli.check_out(out, flag)  # a file where a folder must be: one line naming the flag
+    where = f"{flag} {out}"
+    lock = lock_path(out)
+    made = _make_folders(lock.parent)
+    made_out = not out.exists()
+    fd, failed = None, True
+    try:
+        fd = _take_lock(lock, where, flag)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        signals.working()
+        yield out
+        failed = False
+    finally:
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                mine, now = os.fstat(fd), os.stat(lock, follow_symlinks=False)
+                if (mine.st_dev, mine.st_ino) == (now.st_dev, now.st_ino):
+                    lock.unlink()
+            os.close(fd)
+        if failed:
+            _remove_if_empty([out] if made_out else [])
+            _remove_if_empty(reversed(made))

@@ -504,8 +504,8 @@ def test_a_second_evaluation_of_the_same_out_is_refused_while_the_first_holds_it
     """The lock is held while its process lives, and gone with it when it is killed."""
     out = tmp_path / "eval"
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from mjx_peg import cli\n"
-         "with cli.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
+        [sys.executable, "-c", "import sys, time; from mjx_peg import outdir\n"
+         "with outdir.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
          str(out)],
         stdout=subprocess.PIPE, text=True,
     )  # fmt: skip

@@ -18,7 +18,7 @@ import argparse
 import pathlib
 import sys
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.world import constants
@@ -200,32 +200,33 @@ def main(argv=None) -> int:
     # The output location, before any work: never an input, nothing replaced without --force.
     policy = None if args.replay is not None else args.policy
     cli.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
-    outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
-    if args.out.is_dir() and not args.force:
-        cli.refuse_or_move(outputs, False, PROG)
-    if args.frames:
-        from mjx_peg.world import render
+    with outdir.exclusive(args.out):
+        outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
+        if args.out.is_dir() and not args.force:
+            cli.refuse_or_move(outputs, False, PROG)
+        if args.frames:
+            from mjx_peg.world import render
 
-        render.check_backend()  # or one line: before the trial runs
-    cli.prepare_dir(args.out)
-    cli.refuse_or_move(outputs, args.force, PROG)
-    if args.frames:
-        from mjx_peg.world import gl
+            render.check_backend()  # or one line: before the trial runs
+        cli.prepare_dir(args.out)
+        cli.refuse_or_move(outputs, args.force, PROG)
+        if args.frames:
+            from mjx_peg.world import gl
 
-        if gl.fallback_note():
-            cli.note(PROG, f"warning: {gl.fallback_note()}")
-    from mjx_peg.world import mujoco_log
+            if gl.fallback_note():
+                cli.note(PROG, f"warning: {gl.fallback_note()}")
+        from mjx_peg.world import mujoco_log
 
-    mujoco_log.send_to(args.out)
-    run = run_demo(specs, vector, config, args.frames)
-    cli.write_atomic(outputs[0], lambda path: plot_trial(run, path))
-    wrote = [outputs[0].name]
-    strip = frame_strip(run, args.frames) if args.frames else None
-    if strip is not None:
-        from mjx_peg.world.render import save_png
+        mujoco_log.send_to(args.out)
+        run = run_demo(specs, vector, config, args.frames)
+        cli.write_atomic(outputs[0], lambda path: plot_trial(run, path))
+        wrote = [outputs[0].name]
+        strip = frame_strip(run, args.frames) if args.frames else None
+        if strip is not None:
+            from mjx_peg.world.render import save_png
 
-        cli.write_atomic(outputs[1], lambda path: save_png(path, strip))
-        wrote.append(outputs[1].name)
+            cli.write_atomic(outputs[1], lambda path: save_png(path, strip))
+            wrote.append(outputs[1].name)
     print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:
         return 0

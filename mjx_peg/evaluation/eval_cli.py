@@ -2,7 +2,7 @@
 
     python eval.py --policy runs/quick --grid paper-small --out eval/quick
 
-Parses and checks the flags, holds --out (`cli.exclusive`), runs or resumes the grid and writes
+Parses and checks the flags, holds --out (`outdir.exclusive`), runs or resumes the grid and writes
 its outputs; every rule of the grid itself lives in `evaluation/grid.py`.
 """
 
@@ -13,7 +13,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from mjx_peg import cli, signals
+from mjx_peg import cli, outdir, signals
 from mjx_peg.errors import UsageError
 
 PROG = "eval.py"
@@ -246,8 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
-    signals.working()  # from here a Ctrl-C keeps every finished range
-    with cli.exclusive(out):
+    with outdir.exclusive(out):  # from here a Ctrl-C keeps every finished range
         prepare_out_dir(
             out,
             config,

@@ -14,10 +14,11 @@ earlier run aside (never deletes it) and replaces nothing but a training run; --
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 from pathlib import Path
 
-from mjx_peg import cli, signals
+from mjx_peg import cli, outdir, signals
 from mjx_peg.errors import UsageError
 
 PROG = "train.py"
@@ -148,6 +149,15 @@ def join_distributed() -> None:
         raise UsageError(f"--distributed: could not join the run ({e})") from None
 
 
+def _writes_files(args) -> bool:
+    """Whether this process writes the run directory (one of a --distributed run's does)."""
+    if not args.distributed:
+        return True
+    import jax
+
+    return jax.process_index() == 0
+
+
 @cli.entry(PROG, "interrupted; rerun the same command to resume")
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
@@ -186,14 +196,16 @@ def main(argv=None) -> int:
 
         signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
-    summary = train(
-        config,
-        out,
-        force=args.force,
-        checkpoint_every_s=args.checkpoint_every,
-        progress=not args.no_progress,
-        engine_options=options,
-        note=lambda text: cli.note(PROG, text),
-    )
+    # One writer per --out (with --distributed, the process that writes the files holds it)
+    with outdir.exclusive(out) if _writes_files(args) else contextlib.nullcontext():
+        summary = train(
+            config,
+            out,
+            force=args.force,
+            checkpoint_every_s=args.checkpoint_every,
+            progress=not args.no_progress,
+            engine_options=options,
+            note=lambda text: cli.note(PROG, text),
+        )
     print(summary.line())
     return 0

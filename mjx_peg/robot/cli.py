@@ -23,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import SKILLS
@@ -186,19 +186,28 @@ def main(argv=None) -> int:
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)
+    from mjx_peg.policy.export import load_policy
+
+    task, steps = _setup(args)
+    policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
+    # The output location, before any trial: never the policy, one writer at a time, no earlier
+    # result replaced without --force (moved aside then), writable; then one row per trial as
+    # it ends.
+    cli.check_apart(args.out, {"--policy": args.policy})
+    with outdir.exclusive(args.out):
+        return _simulate(args, task, steps, policy)
+
+
+def _simulate(args, task, steps: int, policy) -> int:
+    """The trials of the simulated arm, into --out (held)."""
     import numpy as np
 
     from mjx_peg.engines.trial import TrialConfig
-    from mjx_peg.policy.export import load_policy, policy_skill
+    from mjx_peg.policy.export import policy_skill
     from mjx_peg.robot import runtime, sim_arm
     from mjx_peg.skill.search import skill_config
     from mjx_peg.world.task import sample_trials
 
-    task, steps = _setup(args)
-    policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
-    # The output location, before any trial: never the policy, no earlier result replaced
-    # without --force (moved aside then), writable; then one row per trial as it ends.
-    cli.check_apart(args.out, {"--policy": args.policy})
     results = args.out / RESULTS
     if _has_rows(results) or results.is_symlink():
         cli.refuse_or_move([results], args.force, PROG)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.export import load_policy, policy_skill
@@ -271,7 +271,12 @@ def run(args, prog: str) -> int:
         print(f"{prog}: dry run: nothing was connected or moved")
         return 0
     cli.check_apart(args.out, {"--policy": args.policy})
-    cli.check_out(args.out)
+    with outdir.exclusive(args.out):
+        return _on_the_arm(args, prog, hole, vector, config, p)
+
+
+def _on_the_arm(args, prog: str, hole: HoleEstimate, vector, config: TrialConfig, p: dict) -> int:
+    """Connect, check, move and run the skill; the log into --out (held)."""
     paths = [args.out / RUN_CSV, args.out / RUN_PNG]
     if not args.force:  # an earlier run is kept: refused before the robot is touched
         cli.refuse_or_move(paths, False, prog)

@@ -24,7 +24,7 @@ import argparse
 import json
 from pathlib import Path
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy
 from mjx_peg.skill.search import SKILLS
@@ -164,10 +164,11 @@ def _render(args) -> str:
         shapes=shapes,
         sizes_mm=tuple(sizes),
     )
-    prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
-    mujoco_log.send_to(args.out)
-    _warn_gl()
-    n = render_split(args.out, config, progress=not args.no_progress)
+    with outdir.exclusive(args.out):
+        prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+        mujoco_log.send_to(args.out)
+        _warn_gl()
+        n = render_split(args.out, config, progress=not args.no_progress)
     return f"rendered {n} images ({config.count} in the split) into {args.out}"
 
 
@@ -185,8 +186,9 @@ def _train(args) -> str:
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
-    prepare_out(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
-    loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
+    with outdir.exclusive(args.out):
+        prepare_out(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+        loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"
     if val:
@@ -204,9 +206,10 @@ def _evaluate(args) -> str:
     cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_items(args.data)
-    cli.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, PROG)
-    cli.prepare_dir(args.out)
-    report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
+    with outdir.exclusive(args.out):
+        cli.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, PROG)
+        cli.prepare_dir(args.out)
+        report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
     o = report["overall"]
     yaw = "-" if o["yaw_p99_deg"] is None else f"{o['yaw_p99_deg']:.2f}"
     return (
@@ -254,24 +257,25 @@ def _act(args) -> str:
         from mjx_peg.policy.export import load_policy
 
         load_policy(args.policy)  # a readable policy, before --out is touched
-    cli.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, PROG)
-    cli.prepare_dir(args.out)
-    mujoco_log.send_to(args.out)
-    _warn_gl()
-    options = {"workers": args.workers} if args.workers else {}
-    s = run_act(
-        loc,
-        args.policy,
-        args.out,
-        shapes,
-        args.size / 1000.0,
-        args.trials,
-        args.seed,
-        options,
-        progress=not args.no_progress,
-        time_limit_s=args.time_limit,
-        skill=args.skill,
-    )
+    with outdir.exclusive(args.out):
+        cli.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, PROG)
+        cli.prepare_dir(args.out)
+        mujoco_log.send_to(args.out)
+        _warn_gl()
+        options = {"workers": args.workers} if args.workers else {}
+        s = run_act(
+            loc,
+            args.policy,
+            args.out,
+            shapes,
+            args.size / 1000.0,
+            args.trials,
+            args.seed,
+            options,
+            progress=not args.no_progress,
+            time_limit_s=args.time_limit,
+            skill=args.skill,
+        )
     a = s["all"]
     return (
         f"vision {100 * a['vision_success']:.1f} %, sampled +-8 mm/+-12 deg "
@@ -288,10 +292,11 @@ def _figures(args) -> str:
     cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_items(args.data)
-    cli.refuse_or_move([args.out / name for name in FIGURES], args.force, PROG)
-    cli.prepare_dir(args.out)
-    _warn_gl()
-    paths = write_figures(loc, args.data, args.out)
+    with outdir.exclusive(args.out):
+        cli.refuse_or_move([args.out / name for name in FIGURES], args.force, PROG)
+        cli.prepare_dir(args.out)
+        _warn_gl()
+        paths = write_figures(loc, args.data, args.out)
     return "wrote " + ", ".join(str(p) for p in paths)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from mjx_peg import cli
+from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 from mjx_peg.world.constants import SHAPES
@@ -56,21 +56,22 @@ def main(argv=None) -> int:
     stem = f"scene_{args.shape}_{args.size_mm:g}mm"
     xml_path, png_path = args.out / f"{stem}.xml", args.out / f"{stem}.png"
     # Everything is checked and made before --out is touched; nothing replaced without --force.
-    if args.out.is_dir() and not args.force:
-        cli.refuse_or_move([xml_path, png_path], False, PROG)
-    xml = build_mjcf(args.shape, size)
-    model = load_model(args.shape, size)
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
-        names = ", ".join(model.camera(i).name for i in range(model.ncam))
-        raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")
-    render.check_backend()
-    cli.prepare_dir(args.out)
-    cli.refuse_or_move([xml_path, png_path], args.force, PROG)
-    if gl.fallback_note():
-        cli.note(PROG, f"warning: {gl.fallback_note()}")
-    rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-    cli.write_atomic(xml_path, xml)
-    cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
+    with outdir.exclusive(args.out):
+        if args.out.is_dir() and not args.force:
+            cli.refuse_or_move([xml_path, png_path], False, PROG)
+        xml = build_mjcf(args.shape, size)
+        model = load_model(args.shape, size)
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
+            names = ", ".join(model.camera(i).name for i in range(model.ncam))
+            raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")
+        render.check_backend()
+        cli.prepare_dir(args.out)
+        cli.refuse_or_move([xml_path, png_path], args.force, PROG)
+        if gl.fallback_note():
+            cli.note(PROG, f"warning: {gl.fallback_note()}")
+        rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
+        cli.write_atomic(xml_path, xml)
+        cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
     print(xml_path)
     print(png_path)
     return 0
