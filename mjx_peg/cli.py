@@ -320,8 +320,7 @@ def check_jax() -> None:
         why = " ".join(str(e).split())[:200] or type(e).__name__
         where = f"JAX_PLATFORMS={platforms!r}" if platforms is not None else "JAX"
         raise UsageError(
-            f"{where}: JAX cannot start a back-end ({why}); set JAX_PLATFORMS=cpu or leave it "
-            "unset"
+            f"{where}: JAX cannot start a back-end ({why}); set JAX_PLATFORMS=cpu or leave it unset"
         ) from None
 
 
