@@ -79,6 +79,7 @@ class Case:
     script: Callable[[Case, Path], Result] | None = None  # instead of argv: a sequence
     timeout: float = TIMEOUT_S
     prog: str = ""  # the program name its lines start with
+    needs: tuple[str, ...] = ()  # the shared fixtures it reads (make_fixtures)
 
 
 class Runner:
@@ -410,6 +411,11 @@ LABEL_DAMAGE: dict[str, Callable[[Path], None]] = {
 
 
 def vision_cases(runner: Runner) -> list[Case]:
+    """A damaged localizer, split, calibration or image, for each verb that reads it."""
+    return [dataclasses.replace(c, needs=("split",)) for c in _vision_cases(runner)]
+
+
+def _vision_cases(runner: Runner) -> list[Case]:
     cases = []
     vis = runner.program("mjx-peg-vision")
     model = runner.clone / "policies" / "localizer"
@@ -517,6 +523,10 @@ RANGE_DAMAGE = {
 def eval_resume_cases(runner: Runner) -> list[Case]:
     """A finished range of a resumed evaluation, damaged: the rerun refuses in one line naming
     it, and the other ranges stay."""
+    return [dataclasses.replace(c, needs=("eval",)) for c in _eval_resume_cases(runner)]
+
+
+def _eval_resume_cases(runner: Runner) -> list[Case]:
     argv = [*runner.program("eval.py"), *_EVAL_ARGS, "--out", "eval"]
     cases = []
 
@@ -639,6 +649,11 @@ _PARTIAL_ARGS = [*_TRAIN_ARGS, "--trials", "32"]  # the stopped run of the fixtu
 
 
 def train_resume_cases(runner: Runner) -> list[Case]:
+    """A stopped training run, damaged, resumed."""
+    return [dataclasses.replace(c, needs=("run-partial",)) for c in _train_resume_cases(runner)]
+
+
+def _train_resume_cases(runner: Runner) -> list[Case]:
     argv = [*runner.program("train.py"), *_PARTIAL_ARGS, "--out", "run"]
     damage = {
         "deep": lambda p: p.write_text(DEEP),
@@ -1361,7 +1376,8 @@ def api_cases(runner: Runner) -> list[Case]:
 RUNNER: Runner
 
 
-def make_fixtures(runner: Runner) -> None:
+def make_fixtures(runner: Runner, needed: set[str]) -> None:
+    """The fixtures `needed` (of eval, run-partial, split), each made once."""
     f = runner.fixtures
     f.mkdir(parents=True, exist_ok=True)
     steps = [
@@ -1371,7 +1387,7 @@ def make_fixtures(runner: Runner) -> None:
                    "--height", "240", "--no-progress", "--out", str(f / "split")]),
     ]  # fmt: skip
     for name, argv in steps:
-        if (f / name).exists():
+        if (f / name).exists() or name not in needed:
             continue
         if argv is None:  # a training run stopped after its first iteration's checkpoint
             child = _start([*runner.program("train.py"), *_PARTIAL_ARGS, "--out",
@@ -1484,13 +1500,13 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if not runner.clone.exists():
         subprocess.run(["git", "clone", "-q", str(args.source), str(runner.clone)], check=True)
-    make_fixtures(runner)
     log = out / ("results.jsonl" if args.mode == "cases" else "ctrl_c.jsonl")
     done = {}
     if log.exists():
         for line in log.read_text().splitlines():
             record = json.loads(line)
             done[record["name"]] = record
+    make_fixtures(runner, {n for c in cases if c.name not in done for n in c.needs})
     for k, case in enumerate(cases):
         if case.name in done:
             continue

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli, signals
+from mjx_peg import cli, inputs, signals
 from mjx_peg.errors import UsageError
 
 _SHOWN = 60  # characters of a differing value quoted in a message
@@ -80,9 +80,10 @@ class OutDir:
 
     def recorded(self) -> dict:
         """The config recorded in the config file; UsageError if the file is not one."""
+        doc = inputs.read_json(self.config_path, f"{self._a_noun} config")
         try:
-            return _plain(self.read(json.loads(self.config_path.read_text())))
-        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            return _plain(self.read(doc))
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as e:
             why = f"no {e}" if isinstance(e, KeyError) else cli.message(e)
             raise UsageError(
                 f"{self.config_path} is not {self._a_noun} config{f' ({why})' if why else ''}; "

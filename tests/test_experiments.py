@@ -211,3 +211,13 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     argv = [sys.executable, ROOT / "experiments/regenerate.py", "--only", "zero", "--out", tmp_path]
     other = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
     assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
+
+
+def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_path):
+    names = run_script("experiments/catalogue.py", "--list").split()
+    assert len(names) >= 500 and len(set(names)) == len(names)
+    groups = {name.split("/")[0] for name in names}
+    assert {"edge", "damaged-policy", "kill", "concurrency", "ur5e", "ray", "env", "api"} <= groups
+    out = run_script("experiments/catalogue.py", "--out", tmp_path, "--only", "api/skill_config")
+    assert "| the Python API | 2 | 2 |" in out  # both one line: a UsageError each
+    assert (tmp_path / "clone" / "mjx_peg").is_dir() and (tmp_path / "table.md").is_file()
