@@ -45,7 +45,7 @@ def capture(trials: int, rows: int) -> dict:
 
     config = TrialConfig(time_limit_s=2.0, end_settled=False)
     try:
-        cpu_engine.run_trials(specs, params, config, threads=1, observer=observe)
+        cpu_engine.run_on_cpu(specs, params, config, threads=1, observer=observe)
     except _Captured:
         return got
     raise SystemExit(f"gil.py: error: no control period had {rows} live rows")

@@ -29,9 +29,9 @@ def _job(args):
     specs = sample_trials(task, 0, trials).take(np.arange(part, trials, parts))
     config = TrialConfig(time_limit_s=10.0, end_settled=False)
     warm = specs.take(np.arange(4))
-    engine.run_trials(warm, as_controller_params(baseline_params(), 4), config, threads=lanes)
+    engine.run_on_cpu(warm, as_controller_params(baseline_params(), 4), config, threads=lanes)
     start = time.perf_counter()
-    result = engine.run_trials(
+    result = engine.run_on_cpu(
         specs, as_controller_params(baseline_params(), len(specs)), config, threads=lanes
     )
     return int(result.steps.sum()), time.perf_counter() - start, int(result.success.sum())

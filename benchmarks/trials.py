@@ -42,7 +42,7 @@ STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 def time_engine(specs, params, config, threads, slots=None):
     """(result, wall s, CPU s of this process: all its threads)."""
     start, cpu = time.perf_counter(), time.process_time()
-    result = cpu_engine.run_trials(specs, params, config, threads=threads, slots_per_thread=slots)
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=threads, slots_per_thread=slots)
     return result, time.perf_counter() - start, time.process_time() - cpu
 
 
@@ -52,7 +52,7 @@ def call_overhead(specs, params, threads, calls=20):
     two, times = specs.take(np.arange(2)), []
     for _ in range(calls):
         start = time.perf_counter()
-        cpu_engine.run_trials(two, params, config, threads=threads)
+        cpu_engine.run_on_cpu(two, params, config, threads=threads)
         times.append(time.perf_counter() - start)
     return float(np.median(times))
 
@@ -68,7 +68,7 @@ def record_states(specs, params, config, every):
             mujoco.mj_getState(m, d, state, STATE)
             snaps.append((int(lane.spec_index[i]), state))
 
-    cpu_engine.run_trials(specs, params, config, threads=1, observer=observe)
+    cpu_engine.run_on_cpu(specs, params, config, threads=1, observer=observe)
     return snaps
 
 
@@ -149,7 +149,7 @@ def profile_parts(specs, params, config, unprofiled_wall=None):
     """µs per env-step by stage of one lane in this process (`run_trials(profile=...)`)."""
     times = StageTimes()
     start = time.perf_counter()
-    result = cpu_engine.run_trials(specs, params, config, threads=1, profile=times)
+    result = cpu_engine.run_on_cpu(specs, params, config, threads=1, profile=times)
     wall = time.perf_counter() - start
     steps, periods = int(result.steps.sum()), times.calls["step"]
     shares = {f"{name}: {text}": times.seconds[name] for name, text in lanes.PROFILE_STAGES.items()}
@@ -175,10 +175,10 @@ def time_mjx(specs, params, config, batch):
     from mjx_peg.engines import mjx as mjx_engine
 
     start = time.perf_counter()
-    mjx_engine.run_trials(specs, params, config, batch=batch)  # compile + first run
+    mjx_engine.run_on_device(specs, params, config, batch=batch)  # compile + first run
     first = time.perf_counter() - start
     start = time.perf_counter()
-    result = mjx_engine.run_trials(specs, params, config, batch=batch)
+    result = mjx_engine.run_on_device(specs, params, config, batch=batch)
     elapsed = time.perf_counter() - start
     return result, elapsed, first - elapsed, jax.devices()[0].device_kind
 
@@ -211,7 +211,7 @@ def main() -> None:
     specs = sample_trials(task, 0, args.trials)
     params = as_controller_params(baseline_params(), len(specs))
     warm = specs.take(np.arange(4))
-    cpu_engine.run_trials(warm, params, full, threads=args.threads)  # warm-up
+    cpu_engine.run_on_cpu(warm, params, full, threads=args.threads)  # warm-up
 
     snaps = record_states(specs, params, full, args.replay_every)
     replayed = f"{len(snaps)} snapshots x {args.replay_every} steps"

@@ -310,7 +310,7 @@ def policy_commands(runner: Runner) -> dict[str, list[str]]:
         "robot-dry-run": [*runner.program("robot"), "--dry-run", "--policy", "policy", "--hole",
                           "450,-120,30", "--shape", "circle", "--out", "new/out"],
         "vision-act": [*runner.program("mjx-peg-vision"), "act", "--policy", "policy",
-                       "--trials", "1", "--time-limit", "0.05", "--workers", "1", "--out",
+                       "--trials", "1", "--time-limit", "0.05", "--threads", "1", "--out",
                        "new/out", *q],
     }  # fmt: skip
 
@@ -427,7 +427,7 @@ def _vision_cases(runner: Runner) -> list[Case]:
                 "evaluate": [*vis, "evaluate", "--model", "model", "--data", "split", "--out",
                              "new/out", "--no-progress"],
                 "act": [*vis, "act", "--model", "model", "--trials", "1", "--time-limit", "0.05",
-                        "--workers", "1", "--out", "new/out", "--no-progress"],
+                        "--threads", "1", "--out", "new/out", "--no-progress"],
             }[command]  # fmt: skip
 
             def setup(folder, damage=damage):
@@ -709,9 +709,9 @@ BAD_VALUES = {"neg": "-1", "nan": "nan", "inf": "inf", "1e309": "1e309", "empty"
 def edge_cases(runner: Runner) -> list[Case]:
     flags = {
         "train.py": (["--out", "new/out"], ["--seed", "--num-envs", "--trials", "--time-limit",
-                                            "--checkpoint-every", "--workers", "--processes"]),
+                                            "--checkpoint-every", "--threads", "--processes"]),
         "eval.py": (["--policy", "baseline", "--out", "new/out"],
-                    ["--size", "--trials", "--time-limit", "--seed", "--threads", "--workers",
+                    ["--size", "--trials", "--time-limit", "--seed", "--threads",
                      "--processes", "--chunk-trials", "--linear-mm", "--angular-deg"]),
         "mjx-peg-baseline": ([], ["--size", "--linear-mm", "--angular-deg", "--trials",
                                   "--time-limit", "--seed"]),
@@ -723,7 +723,7 @@ def edge_cases(runner: Runner) -> list[Case]:
         "mjx-peg-vision render": (["--out", "new/out", "--count", "1"],
                                   ["--count", "--seed", "--width", "--height", "--sizes"]),
         "mjx-peg-vision act": (["--out", "new/out"], ["--size", "--trials", "--time-limit",
-                                                      "--seed", "--workers"]),
+                                                      "--seed", "--threads"]),
         "mjx-peg-scene": (["--shape", "circle", "--out", "new/out"], ["--size", "--width",
                                                                      "--height"]),
     }  # fmt: skip
@@ -825,8 +825,8 @@ def ur5e_cases(runner: Runner) -> list[Case]:
                           [*robot, *argv], expect=expect, check=check, timeout=120,
                           prog="python -m mjx_peg.robot"))  # fmt: skip
     # Every shipped policy on every shape, dry run and rehearsal: refused unless trained on it.
-    for policy in ("quick", "paper", "transfer", "quick-align", "quick-search",
-                   "quick-paper-skill"):  # fmt: skip
+    for policy in sorted(p.name for p in (HERE / "policies").iterdir()
+                         if (p / "manifest.json").is_file()):  # fmt: skip
         manifest = json.loads((HERE / "policies" / policy / "manifest.json").read_text())
         for shape in ("circle", "square", "triangle"):
             for size in ("50", "25"):
@@ -1324,13 +1324,13 @@ API_CALLS = {
                                "TrainConfig(policy_hidden=(10**9,))",
     "TrainConfig-from_json-list": "from mjx_peg.learn.config import TrainConfig; "
                                   "TrainConfig.from_json({'shapes': 5})",
-    "EvalConfig-trials-float": "from mjx_peg.evaluation.grid import EvalConfig; "
+    "EvalConfig-trials-float": "from mjx_peg.evaluation.config import EvalConfig; "
                                "EvalConfig('baseline', 'custom', (1,), (1,), 2.5, ('circle',), 50)",
-    "EvalConfig-shapes-int": "from mjx_peg.evaluation.grid import EvalConfig; "
+    "EvalConfig-shapes-int": "from mjx_peg.evaluation.config import EvalConfig; "
                              "EvalConfig('baseline', 'custom', (1,), (1,), 2, 5, 50)",
-    "EvalConfig-size-text": "from mjx_peg.evaluation.grid import EvalConfig; "
+    "EvalConfig-size-text": "from mjx_peg.evaluation.config import EvalConfig; "
                             "EvalConfig('baseline', 'custom', (1,), (1,), 2, ('circle',), '50')",
-    "parse_ranges-huge": "from mjx_peg.evaluation.grid import parse_ranges; "
+    "parse_ranges-huge": "from mjx_peg.cli import parse_ranges; "
                          "parse_ranges('0:1e9:1e-9', '--linear-mm')",
     "HoleEstimate-nan": "from mjx_peg.robot.runtime import HoleEstimate; "
                         "HoleEstimate(float('nan'), 0, 0, 'circle', 0.05)",

@@ -62,7 +62,7 @@ def replay(args) -> tuple[dict, dict]:
     if changes:
         print("search constants:", "; ".join(f"{k}={v}" for k, v in changes.items()))
     params = as_controller_params(params, 1)
-    engine.run_trials(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
+    engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=1, observer=observe)
     trace = {k: np.asarray(v) for k, v in trace.items()}
     trace["dt"] = config.timestep
     trace["hole_xy"] = np.asarray(specs.board_pos[0])

@@ -25,15 +25,14 @@ import re
 import time
 
 import numpy as np
+from ablations import ablation, add_skill_option, chosen  # experiments/ablations.py
 
-from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
-from mjx_peg.policy.export import load_policy, policy_skill
+from mjx_peg.policy.export import load_policy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
-from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.skill.sensor import SensorConfig
 from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
@@ -100,9 +99,9 @@ def search_changes(changes: str) -> dict[str, float]:
 
 
 def search_config(skill, changes: str):
-    """The SkillConfig of `skill` (a name or a SkillConfig) with the constants of 'NAME=V;...'
-    changed."""
-    search = skill_config(skill) if isinstance(skill, str) else skill
+    """The SkillConfig of `skill` (an ablation's name, experiments/ablations.py, or a
+    SkillConfig) with the constants of 'NAME=V;...' changed."""
+    search = ablation(skill) if isinstance(skill, str) else skill
     return search.replace(**search_changes(changes))
 
 
@@ -142,7 +141,7 @@ def main(argv=None) -> None:
         help="force (N), moment (N m) dead bands of the "
         "wrench the compliance acts on (TrialConfig.force_deadband, moment_deadband)",
     )
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    add_skill_option(p)
     p.add_argument(
         "--search",
         default="",
@@ -151,8 +150,9 @@ def main(argv=None) -> None:
     )
     args = p.parse_args(argv)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
-    args.skill = args.skill or policy_skill(policy)
-    search = search_config(args.skill, args.search)
+    skill = chosen(args.skill, policy)
+    args.skill = skill.name
+    search = search_config(skill.config, args.search)
     task = TaskConfig(shapes=tuple(args.shapes.split(",")), sizes=(args.size_mm / 1000,),
                       linear_error=args.linear_mm / 1000,
                       angular_error=math.radians(args.angular_deg),

@@ -19,15 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg.evaluation import grid
+from mjx_peg.evaluation import eval_dir
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _report import ROOT, write_section  # noqa: E402  (benchmarks/_report.py)
 
 
 def compare(early_dir: Path, full_dir: Path) -> tuple[list[str], float]:
-    early_cfg, _ = grid.read_eval_dir(early_dir)
-    full_cfg, _ = grid.read_eval_dir(full_dir)
+    early_cfg, _ = eval_dir.read_eval_dir(early_dir)
+    full_cfg, _ = eval_dir.read_eval_dir(full_dir)
     a, b = early_cfg.to_json(), full_cfg.to_json()
     a.pop("full_time_limit"), b.pop("full_time_limit")
     if a != b:
@@ -40,7 +40,10 @@ def compare(early_dir: Path, full_dir: Path) -> tuple[list[str], float]:
     same = total = settled = steps_early = steps_full = won_early = won_full = 0
     rows = []
     for i, (lin, ang) in enumerate(ranges):
-        e, f = grid.load_range(early_dir, early_cfg, i), grid.load_range(full_dir, full_cfg, i)
+        e, f = (
+            eval_dir.load_range(early_dir, early_cfg, i),
+            eval_dir.load_range(full_dir, full_cfg, i),
+        )
         if e is None or f is None:
             sys.exit(f"early_ending.py: error: range {i} has not finished in both evaluations")
         total += e["success"].size

@@ -14,14 +14,12 @@ import argparse
 import sys
 
 import numpy as np
+from ablations import add_skill_option, chosen  # experiments/ablations.py
 
-from mjx_peg import cli
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
-from mjx_peg.evaluation.grid import load_controller
-from mjx_peg.policy.export import policy_skill
-from mjx_peg.skill.search import SKILLS, skill_config
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -34,7 +32,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--linear-mm", type=float, default=4.0)
     p.add_argument("--angular-deg", type=float, default=6.0)
     p.add_argument("--grasp-model", default="board", choices=GRASP_MODELS)
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    add_skill_option(p)
     p.add_argument("--trials", type=int, default=60, help="per shape")
     p.add_argument("--seed", type=int, default=123)
     p.add_argument("--time-limit", type=float, default=60.0)
@@ -46,8 +44,8 @@ def parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     _, controller = load_controller(args.policy)
-    skill = args.skill or policy_skill(args.policy)
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(skill))
+    skill = chosen(args.skill, args.policy)
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     saved = {}
     for shape in args.shape.split(","):
         task = TaskConfig.from_mm_deg((shape,), args.size_mm, args.linear_mm, args.angular_deg,

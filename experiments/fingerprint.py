@@ -7,13 +7,15 @@ commits and compare, to show a change left the trial's behaviour as it was.
 The batch: 48 trials (circle, square, triangle 50 mm, ±4 mm / ±6 deg, randomized sensor draws)
 with the baseline's 38 numbers each scaled by U(0.8, 1.2), under seven trial configs (nominal,
 protective stops at 60 N, loose settle tolerances, a 0.3 rad/s speed limit, every failure to the
-limit, a 125 Hz / 25 Hz / 3-period sensor), and 24 zero-error trials; `--compare` lists the
-arrays that differ (exit 1 if any).
+limit, a 125 Hz / 25 Hz / 3-period sensor, the spiral skill), and 24 zero-error trials, all
+but the spiral's with one skill (`--skill`, the paper's by default); `--compare` lists the arrays
+that differ (exit 1 if any).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 import numpy as np
@@ -22,15 +24,16 @@ from mjx_peg.engines import mujoco as engine
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILLS, skill_config
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 SHAPES = ("circle", "square", "triangle")
 
 
-def variants(scale: float) -> dict[str, TrialConfig]:
-    """The trial configs, time limits times `scale`."""
+def variants(scale: float, skill: str = "paper") -> dict[str, TrialConfig]:
+    """The trial configs of a named skill (skill.search.SKILLS), time limits times `scale`."""
     long, short = 12.0 * scale, 3.0 * scale
-    return {
+    configs = {
         "nominal": TrialConfig(time_limit_s=long),
         "stops": TrialConfig(time_limit_s=short, max_tool_force=60.0),
         "settles": TrialConfig(time_limit_s=long, settle_tip_m=1e-3, settle_force_n=5.0,
@@ -39,10 +42,15 @@ def variants(scale: float) -> dict[str, TrialConfig]:
         "no_settle": TrialConfig(time_limit_s=long, end_settled=False),
         "slow_sensor": TrialConfig(time_limit_s=8.0 * scale, sensor=sensor.SensorConfig(
             rate_hz=125.0, cutoff_hz=25.0, delay_steps=3)),
+        "spiral": TrialConfig(time_limit_s=long, search=skill_config("spiral")),
     }  # fmt: skip
+    search = skill_config(skill)
+    return {name: c if name == "spiral" else dataclasses.replace(c, search=search)
+            for name, c in configs.items()}  # fmt: skip
 
 
-def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange"):
+def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange",
+                skill: str = "paper"):  # fmt: skip
     """{variant/field: array} of every TrialResult field of the batch."""
     task = TaskConfig(shapes=SHAPES, linear_error=0.004, angular_error=np.deg2rad(6.0),
                       sensor_cutoff_scale=(0.5, 2.0), sensor_noise_scale=(0.5, 2.0),
@@ -52,14 +60,15 @@ def fingerprint(trials: int = 48, scale: float = 1.0, grasp_model: str = "flange
     scaled = np.tile(vector, (trials, 1)) * np.random.default_rng(0).uniform(0.8, 1.2, (trials, 38))
     params = as_controller_params(scaled, trials)
     out = {}
-    for name, config in variants(scale).items():
-        result = engine.run_trials(specs, params, config, threads=2)
+    for name, config in variants(scale, skill).items():
+        result = engine.run_on_cpu(specs, params, config, threads=2)
         out.update({f"{name}/{k}": v for k, v in result.to_arrays().items()})
         print(f"{name}: {result.summary()}")
     zero = TaskConfig(shapes=SHAPES, linear_error=0.0, angular_error=0.0)
     n = max(1, trials // 2)
-    result = engine.run_trials(sample_trials(zero, 7, n), as_controller_params(vector, n),
-                               TrialConfig(time_limit_s=8.0 * scale), threads=1)  # fmt: skip
+    result = engine.run_on_cpu(sample_trials(zero, 7, n), as_controller_params(vector, n),
+                               TrialConfig(time_limit_s=8.0 * scale, search=skill_config(skill)),
+                               threads=1)  # fmt: skip
     out.update({f"zero/{k}": v for k, v in result.to_arrays().items()})
     print(f"zero: {result.summary()}")
     return out
@@ -81,8 +90,14 @@ def main(argv=None) -> int:
     p.add_argument("--grasp-model", default="flange", choices=("flange", "board"),
                    help="where the grasp errors go (default flange: comparable with batches "
                    "saved before the board model existed)")  # fmt: skip
+    p.add_argument(
+        "--skill",
+        default="paper",
+        choices=tuple(SKILLS),
+        help="the skill every trial runs (default paper: the paper's as written)",
+    )
     args = p.parse_args(argv)
-    arrays = fingerprint(args.trials, args.time_scale, args.grasp_model)
+    arrays = fingerprint(args.trials, args.time_scale, args.grasp_model, args.skill)
     np.savez(args.out, **arrays)
     if args.compare is None:
         return 0

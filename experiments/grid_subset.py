@@ -4,7 +4,7 @@ range, with another policy, skill or search constants: a quick paired check of a
     python experiments/grid_subset.py [--eval docs/eval/paper_spiral_50mm_small_board]
         [--per-shape 5] [--policy paper] [--skill spiral] [--search 'NAME=V;...'] [--npz F]
 
-The trials are the evaluation's own (`grid.range_specs` of its config.json): the first
+The trials are the evaluation's own (`config.range_specs` of its config.json): the first
 `--per-shape` circles and squares (or whatever shapes it has) of each range, on the C engine with
 that evaluation's time limit; ranges keep their quarter. Prints per quarter the success over the
 trials and the mean over ranges of the mean time of the successes (as `eval.py` does), then
@@ -18,10 +18,13 @@ import argparse
 import time
 
 import numpy as np
+from ablations import ABLATIONS  # experiments/ablations.py
 from contact import search_config  # experiments/contact.py
 
 from mjx_peg.engines import run_trials
-from mjx_peg.evaluation.grid import load_controller, range_specs, read_eval_dir
+from mjx_peg.evaluation.config import range_specs
+from mjx_peg.evaluation.eval_dir import read_eval_dir
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.evaluation.stats import QUARTERS, quarter_labels
 from mjx_peg.world.task import TrialSpec
 
@@ -31,7 +34,12 @@ def main(argv=None) -> None:
     p.add_argument("--eval", default="docs/eval/paper_spiral_50mm_small_board")
     p.add_argument("--per-shape", type=int, default=5, help="trials of each shape per range")
     p.add_argument("--policy", default="paper", help="'baseline', a shipped policy or a run")
-    p.add_argument("--skill", default=None, help="default: the evaluation's")
+    p.add_argument(
+        "--skill",
+        default=None,
+        choices=tuple(ABLATIONS),
+        help="an ablation (experiments/ablations.py); default: the evaluation's",
+    )
     p.add_argument("--search", default="", help="SkillConfig constants changed, 'NAME=V;...'")
     p.add_argument("--time-limit", type=float, default=None, help="default: the evaluation's")
     p.add_argument("--threads", type=int, default=None)
@@ -45,7 +53,8 @@ def main(argv=None) -> None:
         raise SystemExit(f"--eval: {e}") from None
     skill = args.skill or config.skill
     trial = config.trial_config()
-    trial = trial.replace(search=search_config(skill, args.search),
+    base = config.skill_constants if args.skill is None else args.skill
+    trial = trial.replace(search=search_config(base, args.search),
                           time_limit_s=args.time_limit or trial.time_limit_s)  # fmt: skip
     parts, ranges = [], []
     for index in range(len(config.ranges)):

@@ -20,7 +20,9 @@ import numpy as np
 
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.evaluation import demo, grid
+from mjx_peg.evaluation import config as grid
+from mjx_peg.evaluation import demo
+from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.skill import dmp, sensor
 
 RANGE = 7
@@ -59,7 +61,7 @@ def main(argv=None) -> None:
     if args.trials is not None:
         specs = specs.take(np.arange(args.trials))
     lin, ang = config.ranges[RANGE]
-    _, old_controller = grid.load_controller(args.old_policy)
+    _, old_controller = load_controller(args.old_policy)
     search = old_trial(args.search_time_limit)
     old = run_trials(specs, old_controller(specs), engine="mujoco", config=search)
     failed = np.flatnonzero(~old.success)
@@ -73,10 +75,10 @@ def main(argv=None) -> None:
           f"{args.old_policy} under the old trial ({args.search_time_limit:g} s) is trial "
           f"{index}; at {args.confirm_time_limit:g} s: {confirmed.summary()}")  # fmt: skip
     now = TrialConfig(time_limit_s=args.time_limit)
-    _, controller = grid.load_controller(args.policy)
+    _, controller = load_controller(args.policy)
     run = demo.run_demo(one, controller(one), now, frames=0)  # its result and its trace
     print(f"under the current trial, {args.policy}: {run['result'].summary()}")
-    _, baseline = grid.load_controller("baseline")
+    _, baseline = load_controller("baseline")
     result = run_trials(one, baseline(one), engine="mujoco", config=now)
     print(f"under the current trial, baseline: {result.summary()}")
     demo.plot_trial(run, args.out)

@@ -1,12 +1,20 @@
-"""Copy a finished training run's portable policy into policies/NAME, with its provenance.
+"""Copy a finished training run's portable policy into policies/NAME, with its provenance; or
+record again which skill a shipped policy runs by default.
 
     python experiments/ship_policy.py runs/quick quick --commit 65ba884 \
-        --command "python train.py --skill search --trials 4096 --out runs/quick"
+        --command "python train.py --trials 4096 --out runs/quick"
+    python experiments/ship_policy.py policies/paper paper --skill spiral
 
 policies/NAME gets policy.npz, manifest.json, config.json, metrics.csv and training_curve.png
 (what the run wrote; no checkpoints), and provenance.json: the full commit whose code trained
 it, the command, the machine, the training's wall time and trials (from metrics.csv). Every
 CLI then takes `--policy NAME` (mjx_peg/policy/shipped.py).
+
+`--skill` records in manifest.json the skill to run the policy with by default: the one its
+published numbers used (default: the one it was trained with), with its constants as they are
+now. Given a shipped policy's own folder, only its manifest.json and config.json are written
+again (the skill to run it with; the training config with every field, the constants of the
+skill it trained with included); policy.npz and the provenance stay as they are.
 """
 
 from __future__ import annotations
@@ -19,29 +27,66 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from mjx_peg.policy.export import load_policy
+from mjx_peg.cli import write_atomic
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.outdir import write_json
+from mjx_peg.policy.export import MANIFEST_FILE, load_policy
 from mjx_peg.policy.shipped import SHIPPED_DIR
+from mjx_peg.skill.search import SKILLS, named_skill
 
 FILES = ("policy.npz", "manifest.json", "config.json", "metrics.csv", "training_curve.png")
 
 
+def record_skill(folder: Path, skill: str | None) -> str:
+    """Write folder's manifest.json and config.json again: the skill to run it with (`skill`,
+    default the trained one, its constants as they are now) and the training config in full.
+    Returns the skill's name."""
+    path = folder / MANIFEST_FILE
+    manifest = json.loads(path.read_text())
+    trained = TrainConfig.from_json(manifest["config"])
+    run = named_skill(skill) if skill else named_skill(trained.skill, trained.skill_constants)
+    written = {}
+    for key, value in manifest.items():  # the order save_policy writes: the skill, the config
+        if key == "config":
+            written.update(skill=run.record(), config=trained.to_json())
+        elif key != "skill":
+            written[key] = value
+    write_json(path, written)
+    config = TrainConfig.from_json(json.loads((folder / "config.json").read_text()))
+    write_atomic(folder / "config.json", config.dumps())
+    load_policy(folder)  # it still reads
+    return run.name
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path, help="a finished training run directory")
+    p.add_argument("run", type=Path, help="a finished training run directory, or policies/NAME")
     p.add_argument("name", help="the shipped name (quick, paper, transfer)")
-    p.add_argument("--commit", required=True, help="the commit whose code trained it")
-    p.add_argument("--command", required=True, help="the command that trained it")
+    p.add_argument("--commit", help="the commit whose code trained it (a run to copy)")
+    p.add_argument("--command", help="the command that trained it (a run to copy)")
     p.add_argument("--note", default="", help="anything else a reader needs")
+    p.add_argument(
+        "--skill",
+        choices=tuple(SKILLS),
+        help="the skill to run it with by default (default: the one it trained with)",
+    )
     args = p.parse_args(argv)
     load_policy(args.run)  # a complete, readable policy, or one clear line
+    out = SHIPPED_DIR / args.name
+    if args.run.resolve() == out.resolve():
+        name = record_skill(out, args.skill)
+        print(f"{out}: runs the skill {name} by default; policy.npz unchanged")
+        return 0
+    if not (args.commit and args.command):
+        p.error("copying a run needs --commit and --command")
     sha = subprocess.run(["git", "rev-parse", "--verify", args.commit + "^{commit}"],
                          capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
     with open(args.run / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
-    out = SHIPPED_DIR / args.name
     out.mkdir(parents=True, exist_ok=True)
     for name in FILES:
         shutil.copy2(args.run / name, out / name)
+    record_skill(out, args.skill)
     provenance = {
         "commit": sha,
         "command": args.command,

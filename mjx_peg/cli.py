@@ -6,12 +6,9 @@
     @cli.entry(PROG)                                       # ValueError / OSError anywhere: one
     def main(argv=None) -> int: ...                        # line, exit 2; Ctrl-C: one line, 130
 
-The output location of every CLI follows the same rules (`check_apart`, `move_aside`,
-`prepare_dir`, `write_atomic`): it is checked and created before any work, it is never one of the
-command's inputs, results are written atomically as they are produced, and an earlier result is
-replaced only with --force, which moves it aside (NAME.replaced-YYYYmmdd-HHMMSS), never deletes it.
-
-Imports nothing of the package, so a CLI can parse its arguments before importing MuJoCo or JAX.
+Where a command writes, and how, is `outdir`'s; only the command-line modules import this one.
+It imports nothing of the package but `errors`, `cores` and `signals`, so a CLI can parse its
+arguments (and take Ctrl-C) before importing MuJoCo or JAX.
 """
 
 from __future__ import annotations
@@ -24,12 +21,10 @@ import os
 import re
 import signal
 import sys
-import tempfile
-import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from mjx_peg import signals
+from mjx_peg import errors, signals
 from mjx_peg.cores import cores
 from mjx_peg.errors import UsageError
 
@@ -50,26 +45,9 @@ def number_text(x: float) -> str:
     return f"{x:g}" if float(f"{x:g}") == x else repr(x)
 
 
-def shown_path(path, limit: int = 120) -> str:
-    """`path` as text, its middle cut out if longer than `limit` characters."""
-    text = str(path)
-    if len(text) <= limit:
-        return text
-    return f"{text[: limit // 2]}...{text[-(limit // 2 - 3) :]} ({len(text):,} characters)"
-
-
-def message(error) -> str:
-    """One line for an exception or a message: OS errors name their file."""
-    if isinstance(error, OSError) and error.strerror:
-        files = (error.filename, error.filename2)
-        where = " -> ".join(shown_path(f) for f in files if f is not None)
-        error = f"{where}: {error.strerror}" if where else error.strerror
-    return " ".join(str(error).split()) or type(error).__name__
-
-
 def fail(prog: str, error) -> int:
     """Print `PROG: error: MESSAGE` (one line) on stderr and return the usage exit status."""
-    print(f"{prog}: error: {message(error)}", file=sys.stderr)
+    print(f"{prog}: error: {errors.message(error)}", file=sys.stderr)
     return EXIT_USAGE
 
 
@@ -208,7 +186,7 @@ ANGULAR_DEG = number(0.0, 45.0, "deg")  # +- localization yaw and grasp tilt ran
 TIME_LIMIT_S = number(0.01, 600.0, "s")  # simulated time per trial (the paper's: 60 s)
 SEED = integer(0, 2**32 - 1)  # NumPy's and JAX's seeds
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
-WORKERS = integer(1, cores(), "the cores this process may use")  # engine worker processes
+THREADS = integer(1, cores(), "the cores this process may use")  # the CPU engine's lanes
 
 
 PROCESSES = integer(0, cores(), "0: lanes as threads of this process; at most the cores")
@@ -237,16 +215,18 @@ def add_grasp_model_option(parser: argparse.ArgumentParser, models, default: str
     )
 
 
-def add_skill_option(parser: argparse.ArgumentParser, skills, default: str | None,
-                     default_text: str = "") -> None:  # fmt: skip
-    """--skill: the skill's contact search (skill.search.SKILLS)."""
+def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
+                     default: str | None = None, default_text: str = "") -> None:  # fmt: skip
+    """--skill: one of `skills` (name -> what it is: skill.search.SKILL_DESCRIPTIONS); default
+    None: the policy's."""
+    described = "; ".join(f"{name}: {text}" for name, text in skills.items())
+    if not default_text:
+        default_text = default or "the one the policy's manifest names, paper for the baseline"
     parser.add_argument(
         "--skill",
         default=default,
-        choices=skills,
-        help="paper: the paper's compliant DMP as written; search: with the contact search, the "
-        "goal moved away from the centre of pressure of a peg resting on the board top "
-        f"(skill/search.py); default: {default_text or default}",
+        choices=tuple(skills),
+        help=f"{described}; default: {default_text}",
     )
 
 
@@ -329,7 +309,55 @@ MAX_AXIS = 1_000  # values of one grid axis
 MAX_GRID_TRIALS = 10_000_000  # trials in one evaluation grid (the paper's has 70,000)
 
 
-# -- the output location ----------------------------------------------------------------------
+def parse_ranges(text: str, name: str, limit: int = MAX_AXIS) -> tuple[float, ...]:
+    """The values of a grid axis flag `name`: '0.5,1,2' or 'START:STOP:STEP' (inclusive) or a mix;
+    UsageError if empty, not finite or more than `limit` values (counted before any is made)."""
+    values: list[float] = []
+    try:
+        for item in (s.strip() for s in text.split(",")):
+            if not item:
+                continue
+            parts = [float(p) for p in item.split(":")]
+            if not all(math.isfinite(v) for v in parts) or len(parts) not in (1, 3):
+                raise ValueError
+            if len(parts) == 3:
+                start, stop, step = parts
+                if not step > 0:
+                    raise UsageError(f"{name}: step of {item!r} must be positive")
+                count = (stop - start) / step + 1e-9
+                if count + 1 + len(values) > limit:
+                    raise UsageError(
+                        f"{name}: {item!r} gives more than {limit:,} values, the most a grid axis "
+                        "takes"
+                    )
+                count = math.floor(count) + 1
+                values += [round(start + k * step, 9) for k in range(max(count, 0))]
+            else:
+                values.append(parts[0])
+            if len(values) > limit:
+                raise UsageError(f"{name}: more than {limit:,} values, the most a grid axis takes")
+    except ValueError as exc:
+        if str(exc).startswith(name):
+            raise
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        raise UsageError(f"{name}: cannot read {shown!r} (give 0.5,1,2 or 1:8:1)") from None
+    if not values:
+        raise UsageError(f"{name} is empty: give comma-separated values or START:STOP:STEP")
+    seen, repeated = set(), []
+    for v in values:
+        if v in seen and v not in repeated:
+            repeated.append(v)
+        seen.add(v)
+    if repeated:
+        shown = ", ".join(f"{v:g}" for v in repeated[:3]) + (", ..." if len(repeated) > 3 else "")
+        raise UsageError(
+            f"{name} repeats {len(repeated):,} value{'s' * (len(repeated) > 1)} ({shown}): ranges "
+            "are rounded to 1e-9, give distinct values"
+        )
+    return tuple(values)
+
+
+# -- path flags ---------------------------------------------------------------------------------
 
 
 def nonempty_path(text: str) -> Path:
@@ -343,113 +371,13 @@ def nonempty_path(text: str) -> Path:
         path.resolve()  # Python 3.11 raises RuntimeError on a symlink loop, 3.13 OSError
         path.exists()
     except RuntimeError:
-        raise argparse.ArgumentTypeError(f"{shown_path(text)!r} is a symbolic link loop") from None
+        shown = errors.shown_path(text)
+        raise argparse.ArgumentTypeError(f"{shown!r} is a symbolic link loop") from None
     except OSError as e:
         why = (
             "is a symbolic link loop"
             if e.errno == errno.ELOOP
             else f"cannot be used ({e.strerror})"
         )
-        raise argparse.ArgumentTypeError(f"{shown_path(text)!r} {why}") from None
+        raise argparse.ArgumentTypeError(f"{errors.shown_path(text)!r} {why}") from None
     return path
-
-
-def _inside(path: Path, other: Path) -> bool:
-    return path == other or other in path.parents
-
-
-def check_apart(out, sources: dict[str, object | None], out_flag: str = "--out") -> None:
-    """ValueError if `out` is, contains or lies inside an input of the command (by flag)."""
-    mine = Path(out).resolve()
-    for flag, source in sources.items():
-        if source is None or str(source) == "baseline":
-            continue
-        theirs = Path(source).resolve()
-        if _inside(mine, theirs) or _inside(theirs, mine):
-            how = "is" if mine == theirs else "overlaps"
-            raise UsageError(
-                f"{out_flag} {out} {how} the {flag} {source}: an output never replaces an input; "
-                f"choose another {out_flag}"
-            )
-
-
-def move_aside(path) -> Path:
-    """Rename `path` (a file or a directory) to NAME.replaced-YYYYmmdd-HHMMSS beside it (with a
-    -2, -3, ... suffix if taken); returns the new path. Nothing is deleted."""
-    path = Path(path)
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    for k in range(1, 1000):
-        target = path.with_name(f"{path.name}.replaced-{stamp}" + (f"-{k}" if k > 1 else ""))
-        if not target.exists() and not target.is_symlink():
-            os.rename(path, target)
-            return target
-    raise UsageError(f"cannot move {path} aside: too many earlier copies beside it")
-
-
-def prepare_dir(path) -> Path:
-    """Create the directory `path` (and its parents) and prove that it is writable; OSError or
-    ValueError (one line) if not."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"{path} exists and is not a directory")
-    path.mkdir(parents=True, exist_ok=True)
-    try:
-        with tempfile.TemporaryFile(dir=path):
-            pass
-    except OSError as e:
-        raise UsageError(f"cannot write in {path} ({e.strerror or e})") from None
-    return path
-
-
-def check_out(out, flag: str = "--out") -> None:
-    """UsageError naming `flag` if `out`, or a folder above it, exists and is not a directory."""
-    out = Path(out)
-    for folder in (out, *out.parents):
-        if folder.exists():
-            if not folder.is_dir():
-                where = "" if folder == out else f": {folder} is a file"
-                raise UsageError(f"{flag} {out} is not a directory{where}")
-            return
-
-
-def partial_path(path) -> Path:
-    """Where `path` is written before it is renamed into place (same suffix, hidden)."""
-    path = Path(path)
-    return path.with_name(f".{path.stem}.partial{path.suffix}")
-
-
-def write_atomic(path, data: bytes | str | Callable[[Path], object]) -> Path:
-    """Write `path` whole or not at all: into a partial file beside it, then rename. `data` is
-    the content, or a function that writes a given path (it keeps the suffix, for plotters)."""
-    path = Path(path)
-    tmp = partial_path(path)
-    try:
-        if callable(data):
-            data(tmp)
-        else:
-            with open(tmp, "wb") as f:
-                f.write(data.encode() if isinstance(data, str) else data)
-        os.replace(tmp, path)
-    except OSError as e:  # a full disk: the error names the file, not its partial copy
-        tmp.unlink(missing_ok=True)
-        raise OSError(e.errno, e.strerror or str(e), str(path)) from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
-
-
-def refuse_or_move(paths, force: bool, prog: str, hint: str = "") -> None:
-    """Before any work: ValueError if any of `paths` (earlier results) exists, unless `force`,
-    which moves each aside (and says where)."""
-    found = [Path(p) for p in paths if Path(p).exists() or Path(p).is_symlink()]
-    if not found:
-        return
-    if not force:
-        names = ", ".join(str(p) for p in found)
-        raise UsageError(
-            f"{names} already exist{'s' if len(found) == 1 else ''}: choose another --out, or "
-            f"pass --force to move {'it' if len(found) == 1 else 'them'} aside{hint}"
-        )
-    for p in found:
-        note(prog, f"--force: moved {p} aside to {move_aside(p)}")

@@ -276,6 +276,7 @@ _NO_JAX = textwrap.dedent(
     import sys
     sys.modules["jax"] = None  # `import jax` now raises ImportError
     import mjx_peg.world.rotations, mjx_peg.skill.dmp, mjx_peg.skill.osc, mjx_peg.skill.params
+    import mjx_peg.skill.search, mjx_peg.skill.sensor
     assert "numpy" not in sys.modules, "a module imported numpy at top level"
     import numpy as np
     from mjx_peg.skill import osc

@@ -18,12 +18,14 @@ import numpy as np
 import pytest
 
 from mjx_peg import cli as shared
-from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli
-from mjx_peg.evaluation import grid as evaluation
+from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli, eval_dir, runner
+from mjx_peg.evaluation import config as eval_config
 from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
 from mjx_peg.robot import cli as robot_cli
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+from mjx_peg.vision import cli as vision_cli
 from mjx_peg.world import scene_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -182,7 +184,7 @@ def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch)
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "1",
     "--trials", "1", "--time-limit", "0.05", "--shape", "square", "--engine", "mujoco",
-    "--workers", "1", "--no-progress",
+    "--threads", "1", "--no-progress",
 ]  # fmt: skip
 
 
@@ -222,7 +224,7 @@ def test_eval_corrupt_range_file_is_one_line_naming_it(tmp_path, capsys, monkeyp
     broken.write_bytes(broken.read_bytes()[:50])
     (out / "grid.csv").unlink()
     calls = []
-    monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(runner, "run_trials", lambda *a, **k: calls.append(1))
     capsys.readouterr()
     assert eval_cli.main([*EVAL, "--out", str(out)]) == 2
     _one_line(capsys, "eval.py", str(broken), "corrupt or truncated", "delete it")
@@ -319,13 +321,13 @@ def test_every_cli_refuses_bad_values_alike(prog, argv, message, tmp_path, capsy
 @pytest.mark.parametrize(
     "prog, argv",
     [
-        ("eval.py", ["--workers", "100000"]),
+        ("eval.py", ["--threads", "100000"]),
         ("eval.py", ["--chunk-trials", "0"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:50:1e-9", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "custom", "--linear-mm", "0:1e308:1e-308", "--angular-deg", "1"]),
         ("eval.py", ["--grid", "paper", "--trials", "100000"]),
         ("train.py", ["--num-envs", "100000000"]),
-        ("train.py", ["--workers", "100000"]),
+        ("train.py", ["--threads", "100000"]),
         ("train.py", ["--processes", "100000"]),
         ("eval.py", ["--processes", "-1"]),
         ("train.py", ["--processes", "2", "--engine", "mjx"]),
@@ -474,9 +476,9 @@ def test_evaluation_config_json_is_recognised_by_its_schema(tmp_path):
     out = tmp_path / "e"
     out.mkdir()
     (out / "config.json").write_text(json.dumps({"config": {}}))
-    config = evaluation.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
+    config = eval_config.EvalConfig("baseline", "custom", (1.0,), (1.0,), 1, ("square",), 50.0)
     with pytest.raises(ValueError, match="is not an evaluation config"):
-        evaluation.prepare_out_dir(out, config, force=True)
+        eval_dir.prepare_out_dir(out, config, force=True)
     assert (out / "config.json").exists()
 
 
@@ -600,3 +602,17 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
         _, err = done.communicate(timeout=900)
         assert done.returncode == 0, err[-2000:]
     assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "main, argv",
+    [(eval_cli.main, []), (train_cli.main, []), (baseline_cli.main, []), (robot_cli.main, []),
+     (vision_cli.main, ["act"])],
+)  # fmt: skip
+def test_every_skill_option_describes_both_skills(main, argv, capsys):
+    """--skill offers the two skills a user chooses between, and its help says what each is."""
+    assert main([*argv, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--skill {paper,spiral}" in text
+    for name, description in SKILL_DESCRIPTIONS.items():
+        assert f"{name}: {description}" in text

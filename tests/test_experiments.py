@@ -30,7 +30,7 @@ def test_fingerprint_runs_and_compares_bit_for_bit(tmp_path):
     done = subprocess.run([sys.executable, script, second, *tiny, "--compare", first],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "70 of 70 arrays bit-identical" in done.stdout
+    assert "80 of 80 arrays bit-identical" in done.stdout
 
 
 def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_path):
@@ -66,17 +66,19 @@ def test_contact_writes_a_row_per_trial_and_contact_table_pairs_two_runs(tmp_pat
 
 
 def test_early_ending_pairs_two_evaluations_and_writes_its_section(tmp_path):
-    from mjx_peg.evaluation import grid
+    from mjx_peg.evaluation.config import EvalConfig
+    from mjx_peg.evaluation.eval_dir import prepare_out_dir
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
 
     dirs = {}
     for full in (False, True):
-        config = grid.EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
-                                 angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
-                                 size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
+        config = EvalConfig(policy="baseline", grid="custom", linear_mm=(1.0,),
+                            angular_deg=(1.0, 2.0), trials=2, shapes=("square",),
+                            size_mm=50.0, time_limit_s=0.3, full_time_limit=full)  # fmt: skip
         out = dirs[full] = tmp_path / ("full" if full else "early")
-        grid.prepare_out_dir(out, config, None)
-        _, controller = grid.load_controller("baseline")
-        assert grid.run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
+        prepare_out_dir(out, config, None)
+        _, controller = load_controller("baseline")
+        assert run_evaluation(config, out, controller, {"threads": 1}, show_progress=False)
     report = tmp_path / "BENCHMARKS.md"
     report.write_text("# Benchmarks\n\n## Early ending\n\nold\n\n## Next\n\nkept\n")
     out = run_script("experiments/early_ending.py", dirs[False], dirs[True], "--write", report)
@@ -126,9 +128,9 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
         seconds[stage] = seconds.get(stage, 0.0) + s
         calls[stage] = calls.get(stage, 0) + 1
 
-    plain = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2)
+    plain = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2)
     watch = lambda lane, rows, wrench: None  # noqa: E731  (the observer stage too)
-    timed = engine.run_trials(specs, params, config, threads=1, slots_per_thread=2,
+    timed = engine.run_on_cpu(specs, params, config, threads=1, slots_per_thread=2,
                               profile=profile, observer=watch)  # fmt: skip
     for name, value in plain.to_arrays().items():
         assert value.tobytes() == timed.to_arrays()[name].tobytes(), name
@@ -136,7 +138,7 @@ def test_the_profile_hook_sees_every_stage_and_changes_no_result():
     assert (timed.steps == 100).all()  # 0.2 s each: on 2 slots, 3 rounds of 100 periods
     assert calls["step"] == calls["advance"] == calls["observer"] == 300
     with pytest.raises(ValueError, match="profile"):
-        engine.run_trials(specs, params, config, processes=1, profile=profile)
+        engine.run_on_cpu(specs, params, config, processes=1, profile=profile)
 
 
 # experiments/engines_agree.py runs in tests/engines/test_engines.py::test_engines_agree (one
@@ -190,6 +192,7 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     listed = run_script("experiments/regenerate.py", "--dry-run", "--out", tmp_path).splitlines()
     names = [line.split(":")[0] for line in listed[:-1]]
     assert names[:2] == ["train_quick", "ship_quick"]  # shipped before anything runs `quick`
+    assert names.index("skill_paper") < names.index("g_paper_spiral_50mm_small_board")
     assert names[-1] == "g_paper_spiral_50mm_nominal_board"  # the longest last
     assert len(names) == len(set(names)) == 43
     compared = names.index("g_transfer_spiral_triangle_small_board")
@@ -211,6 +214,38 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     argv = [sys.executable, ROOT / "experiments/regenerate.py", "--only", "zero", "--out", tmp_path]
     other = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
     assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
+
+
+def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch):
+    """`ship_policy.record_skill` on a copy of policies/paper written before skills were
+    recorded: by default it runs the skill it trained with (`search`, as it was); with
+    --skill spiral its manifest and config.json are the shipped ones, byte for byte, and its
+    policy.npz is untouched."""
+    import json
+    import shutil
+
+    from mjx_peg.policy.export import load_policy
+    from mjx_peg.policy.shipped import SHIPPED_DIR
+    from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig
+
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    import ship_policy
+
+    shipped, copy = SHIPPED_DIR / "paper", tmp_path / "paper"
+    shutil.copytree(shipped, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    del manifest["skill"], manifest["config"]["skill_constants"]
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    config = json.loads((copy / "config.json").read_text())
+    del config["skill_constants"]
+    (copy / "config.json").write_text(json.dumps(config))
+    assert load_policy(copy).skill == NamedSkill("search", SkillConfig(centre_gain=1.0))
+    assert ship_policy.record_skill(copy, None) == "search"
+    assert load_policy(copy).skill == NamedSkill("search", SkillConfig(centre_gain=1.0))
+    assert ship_policy.record_skill(copy, "spiral") == "spiral"
+    assert load_policy(copy).skill == NamedSkill("spiral", SKILLS["spiral"])
+    for name in ("manifest.json", "config.json", "policy.npz"):
+        assert (copy / name).read_bytes() == (shipped / name).read_bytes(), name
 
 
 def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_path):

@@ -12,7 +12,9 @@ import pytest
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "mjx_peg"
 
 # Rank of each layer: a module may import its own layer and lower ranks only. Rank 0 are the
-# helpers every layer shares; `cli` is the shared command-line boundary (it imports them only).
+# helpers every layer shares; `inputs` reads the files a command is given; `cli` is the shared
+# command-line boundary and `outdir` where and how every command writes (rank 2 both, neither
+# importing the other).
 # The last rank's folders are peers that each consume the layers above; they may not import each
 # other, except through the optional imports listed in PEER_IMPORTS.
 RANKS = {
@@ -21,20 +23,21 @@ RANKS = {
     "cores": 0,
     "array_api": 0,  # the array namespace
     "signals": 0,  # how a program stops on SIGINT / SIGTERM
-    "cli": 1,
-    "inputs": 1,  # reading a file someone gave us
-    "outdir": 2,  # the resumable output directory, over cli's atomic writes
-    "world": 2,
-    "skill": 3,
-    "engines": 4,
-    "policy": 5,
-    "learn": 6,
-    "evaluation": 7,
-    "robot": 7,
-    "vision": 7,
+    "inputs": 1,  # reading a file someone gave us: checked before it is used
+    "cli": 2,
+    "outdir": 2,  # output directories: atomic writes, move aside, the --out lock
+    "world": 3,
+    "skill": 4,
+    "engines": 5,
+    "policy": 6,
+    "learn": 7,
+    "evaluation": 8,
+    "robot": 8,
+    "vision": 8,
 }
 PEER_IMPORTS: set[tuple[str, str]] = {
     ("vision", "robot"),  # the localizer returns robot.runtime.HoleEstimate
+    ("vision", "evaluation"),  # vision-to-action trials are compared by evaluation.stats
 }
 
 # Modules the robot's computer runs: importable with neither JAX nor MuJoCo installed.
@@ -125,6 +128,20 @@ def layer_violations(modules=None, imports=_imports) -> list[str]:
     return bad
 
 
+def is_command_line(module: str) -> bool:
+    """A command-line module: the shared boundary `cli`, a `*cli` module or a `__main__`."""
+    name = module.split(".")[-1]
+    return name.endswith("cli") or name == "__main__"
+
+
+def test_only_command_line_modules_import_the_cli_module():
+    """The library writes through `outdir`; flag types and exit codes stay at the boundary."""
+    library = [m for m in _modules() if not is_command_line(m)]
+    assert "mjx_peg.outdir" in library and "mjx_peg.evaluation.runner" in library
+    found = [m for m in library if "mjx_peg.cli" in _imports(m)]
+    assert found == [], f"library modules that import mjx_peg.cli: {found}"
+
+
 def test_every_module_belongs_to_a_layer():
     stray = [m for m in _modules() if _layer(m) not in RANKS and m != "mjx_peg"]
     assert not stray, f"modules outside the layer folders: {stray}"
@@ -154,13 +171,13 @@ def test_the_layer_check_catches_a_wrong_import():
     """A skill module importing the engines, or the robot importing the evaluation, is caught."""
     fake = {
         "mjx_peg.skill.dmp": {"mjx_peg.engines.trial"},
-        "mjx_peg.robot.runtime": {"mjx_peg.evaluation.grid", "mjx_peg.policy.export"},
+        "mjx_peg.robot.runtime": {"mjx_peg.evaluation.runner", "mjx_peg.policy.export"},
         "mjx_peg.world.task": {"mjx_peg.world.kinematics"},
     }
     found = layer_violations(list(fake), imports=fake.__getitem__)
     assert found == [
         "mjx_peg.skill.dmp -> mjx_peg.engines.trial",
-        "mjx_peg.robot.runtime -> mjx_peg.evaluation.grid",
+        "mjx_peg.robot.runtime -> mjx_peg.evaluation.runner",
     ]
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import OutDir, write_json, write_npz
 
@@ -125,7 +125,7 @@ def test_a_failed_write_leaves_the_old_file_and_no_partial_one(tmp_path):
         raise OSError(28, "No space left on device")
 
     with pytest.raises(OSError):
-        cli.write_atomic(doc, half)
+        outdir.write_atomic(doc, half)
     assert doc.read_text() == '{\n  "x": 1\n}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json", "r.npz"]
     write_json(doc, {"x": [1, 2]}, indent=None)

@@ -43,7 +43,7 @@ def run_trials(
     """Run every trial in `specs` and return the results in spec order.
 
     params: `ControllerParams` (batched or not) or physical 38-vectors, shape (38,) or (B, 38).
-    engine_options: `threads` (lanes, default every core; `workers` is its former name),
+    engine_options: `threads` (lanes, default every core),
     `slots_per_thread`, `batch_threads`, `persistent`, `processes` (lanes in that many worker
     processes, `engines/processes.py`) (mujoco); `batch`, `recycle_every` (mjx).
     """
@@ -55,8 +55,19 @@ def run_trials(
         raise UsageError("specs holds no trials")
     config = config or TrialConfig()
     params = as_controller_params(params, len(specs))
-    if name == "mujoco":
-        from mjx_peg.engines import mujoco as impl
-    else:
-        from mjx_peg.engines import mjx as impl
-    return impl.run_trials(specs, params, config, progress=progress, **engine_options)
+    return engine_runner(name)(specs, params, config, progress=progress, **engine_options)
+
+
+def engine_runner(engine: str) -> Callable[..., TrialResult]:
+    """The function that runs a batch of trials on a resolved engine: `mujoco.run_on_cpu` (lanes
+    in this process, worker processes or a Ray cluster) or `mjx.run_on_device` (jitted on JAX's
+    device). Imported on first use, so that the CPU engine never pays for importing JAX."""
+    if engine == "mujoco":
+        from mjx_peg.engines import mujoco
+
+        return mujoco.run_on_cpu
+    if engine == "mjx":
+        from mjx_peg.engines import mjx
+
+        return mjx.run_on_device
+    raise UsageError(f"unknown engine {engine!r}: choose mujoco or mjx")

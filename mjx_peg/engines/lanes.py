@@ -14,7 +14,7 @@ are re-sorted. Lanes run in Python threads: while one steps in C, another runs i
 A trial's arithmetic does not depend on its lane, row, batch or thread count, so results are
 bit-identical whatever the threads, slots and batch threads (tested).
 
-Profiling: `run_trials(..., profile=f)` calls `f(stage, seconds)` in the lane's thread for each
+Profiling: `run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's thread for each
 stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it the lanes read
 no clock. It only reads the clock: the results are the same with it.
 """
@@ -71,7 +71,7 @@ RESULT_DTYPE = np.dtype(
 )
 
 
-# The stages a profile hook sees (`run_trials(profile=...)`), in the order of a period.
+# The stages a profile hook sees (`run_in_threads(profile=...)`), in the order of a period.
 PROFILE_STAGES = {
     "measure": "the bound fields of the live rows gathered (`Sims.measure`)",
     "ends": "the end tests (`period.ends`) and the ended trials' results (`period.result`)",
@@ -436,7 +436,7 @@ def count(name: str, value, default: int) -> int:
     return int(value)
 
 
-def run_trials(
+def run_in_threads(
     specs: TrialSpec,
     params: ControllerParams,
     config: TrialConfig,
@@ -448,7 +448,7 @@ def run_trials(
     persistent: bool | None = None,
     profile: Callable[[str, float], None] | None = None,
 ) -> TrialResult:
-    """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_trials`' options;
+    """Every trial of `specs` on `threads` lanes in this process (`mujoco.run_on_cpu`' options;
     params batched and validated)."""
     n = len(specs)
     if observer is not None and threads not in (None, 1):

@@ -243,7 +243,7 @@ def _program(shape: str, size: float, config: TrialConfig, batch: int, recycle_e
     return _Program(scene.load_model(shape, size), config, batch, recycle_every)
 
 
-def run_trials(
+def run_on_device(
     specs: TrialSpec,
     params: ControllerParams,
     config: TrialConfig,

@@ -1,9 +1,9 @@
 """The CPU engine: C MuJoCo stepped by its own thread pool (`mujoco.batch`), the trial's periods
 batched in NumPy over every live trial at once (`engines/lanes.py`, `engines/period.py`).
 
-`run_trials` runs the trials in lanes of this process (threads), in worker processes
-(`engines/processes.py`) or on a Ray cluster (`engines/ray_pool.py`); all three give the same
-results, bit for bit.
+`run_on_cpu` runs the trials in lanes of this process (threads, `lanes.run_in_threads`), in
+worker processes (`processes.run_in_processes`) or on a Ray cluster (`ray_pool.run_on_cluster`);
+all three give the same results, bit for bit.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from mjx_peg.skill.params import ControllerParams
 from mjx_peg.world.task import TrialSpec
 
 
-def run_trials(
+def run_on_cpu(
     specs: TrialSpec,
     params: ControllerParams,
     config: TrialConfig,
@@ -25,7 +25,6 @@ def run_trials(
     slots_per_thread: int | None = None,
     progress: Callable[[int], None] | None = None,
     observer: Callable | None = None,
-    workers: int | None = None,
     batch_threads: int | None = None,
     persistent: bool | None = None,
     processes: int | None = None,
@@ -35,7 +34,7 @@ def run_trials(
     """Run every trial of `specs` with per-trial `params` (batched, validated) on C MuJoCo.
 
     threads: lanes, each a Python thread with its own batches (default: every core this process
-    may use, at most one per trial); workers: the same (its name when lanes were processes).
+    may use, at most one per trial).
     slots_per_thread: rows per lane (default: SLOTS_PER_THREAD, or fewer to spread the trials
     over every lane). batch_threads: C threads of each lane's batches (default 1).
     persistent: one MjData per simulation (`mujoco.batch.Batch(persistent=True)`: each step
@@ -53,9 +52,6 @@ def run_trials(
     ray: run them on the Ray cluster at this address, one lane per CPU (`engines/ray_pool.py`:
     "auto", "local" or HOST:PORT); the same results.
     """
-    if workers is not None and threads is not None and workers != threads:
-        raise UsageError(f"threads ({threads}) and workers ({workers}) name the same option")
-    threads = threads if threads is not None else workers
     if ray is not None or processes is not None:  # lanes elsewhere: bad values are one error
         for name, value in (("threads", threads), ("slots_per_thread", slots_per_thread),
                             ("batch_threads", batch_threads)):  # fmt: skip
@@ -67,7 +63,7 @@ def run_trials(
                              "threads, observer or profile")  # fmt: skip
         from mjx_peg.engines import ray_pool
 
-        return ray_pool.run_trials(
+        return ray_pool.run_on_cluster(
             specs, params, config, ray, progress=progress, slots_per_thread=slots_per_thread,
             batch_threads=batch_threads, persistent=persistent,
         )  # fmt: skip
@@ -78,11 +74,11 @@ def run_trials(
                              "processes=None")  # fmt: skip
         from mjx_peg.engines import processes as worker_processes
 
-        return worker_processes.run_trials(
+        return worker_processes.run_in_processes(
             specs, params, config, processes, threads=threads, progress=progress,
             slots_per_thread=slots_per_thread, batch_threads=batch_threads, persistent=persistent,
         )  # fmt: skip
-    return lanes.run_trials(
+    return lanes.run_in_threads(
         specs, params, config, threads=threads, slots_per_thread=slots_per_thread,
         progress=progress, observer=observer, batch_threads=batch_threads, persistent=persistent,
         profile=profile,

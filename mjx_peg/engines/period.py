@@ -1,4 +1,5 @@
-"""One control period of a trial: every rule a period decides, written once for both engines.
+"""One control period of a trial: every rule a period decides, written once for the engines and
+the robot runtime.
 
 Per period, at the arm's measurement (the physics' position and velocity stages, the F/T
 reading one physics step old):
@@ -14,9 +15,15 @@ reading one physics step old):
    and spiral (`search.spiral_state`); the settle test; the control step's joint torques.
 3. `result`: what an ended trial records (`TrialResult`'s fields).
 
-`period` is 1 then 2. Written over the array-API namespace of the inputs like `skill/`: the C
-engine runs it batched in NumPy over its live rows, the MJX engine inside its jitted, vmapped
-step. What stays in the engines is the physics: stepping, and gathering a `PeriodMeasurement`.
+`period` is 1 then 2. A period lasts m = `period_steps` physics steps of
+`TrialConfig.timestep` (the engines command every step, m = 1; an arm commanded at 125 Hz,
+m = 4), the torque held over them: the damping's pole is then a_c^m, the search's states advance
+by m T, the clock and the settle test count m steps a period (the F/T filter's pole is its
+`SensorParams`', `sensor.filter_params` for an arm's own sensor path).
+Written over the array-API namespace of the inputs like `skill/`: the C engine runs it batched
+in NumPy over its live rows, the MJX engine inside its jitted, vmapped step, the robot runtime
+on a batch of one. What stays in the engines is the physics: stepping, and gathering a
+`PeriodMeasurement`. It imports neither JAX nor MuJoCo.
 """
 
 from __future__ import annotations
@@ -62,7 +69,7 @@ class TrialConsts(NamedTuple):
 class TrialState(NamedTuple):
     """What a trial carries from one control period to the next (a pytree)."""
 
-    step: object  # (...,) int: control periods since the start
+    step: object  # (...,) int: control periods since the start (the chatter ring counts them)
     peak_force: object  # (...,) N: largest sensed force so far
     stop: object  # (...,) bool: the sensed force has passed max_tool_force
     sensor: sensor.SensorState
@@ -140,11 +147,17 @@ def start(config: TrialConfig, consts: TrialConsts) -> TrialState:
     )
 
 
+def physics_steps(step, period_steps: int = 1):
+    """(...,) int: the physics steps since the start after `step` (...,) control periods of
+    `period_steps` physics steps each."""
+    return step if period_steps == 1 else step * period_steps
+
+
 def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, qvel,
-         physics_ok=None) -> Ends:  # fmt: skip
+         physics_ok=None, period_steps: int = 1) -> Ends:  # fmt: skip
     """The end tests at this period's measurement (tip_pos (..., 3), qvel (..., n));
     physics_ok (...,) bool: the engine's own check of its step, if it has one (the C engine:
-    MuJoCo did not reset the data)."""
+    MuJoCo did not reset the data); period_steps: physics steps per control period."""
     xp = namespace_of(tip_pos, qvel)
     inside = is_success(tip_pos, consts.hole_origin, consts.hole_axis, consts.size,
                         config.success_height)  # fmt: skip
@@ -156,7 +169,8 @@ def ends(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos, q
     stop = state.stop
     success = inside & ~stop & ~unstable
     settled = is_settled(state.settle, config) & ~inside & ~unstable & ~stop
-    ended = success | unstable | stop | settled | (state.step >= config.max_steps)
+    out_of_time = physics_steps(state.step, period_steps) >= config.max_steps
+    ended = success | unstable | stop | settled | out_of_time
     return Ends(success, unstable, settled, ended)
 
 
@@ -175,11 +189,15 @@ def result(config: TrialConfig, consts: TrialConsts, state: TrialState, tip_pos,
 
 
 def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: TrialConsts,
-            state: TrialState, meas: PeriodMeasurement):  # fmt: skip
-    """(state, torques (..., n), wrench (..., 6)): one period of trials that go on.
+            state: TrialState, meas: PeriodMeasurement, period_steps: int = 1,
+            zero_nonfinite: bool = True):  # fmt: skip
+    """(state, torques (..., n), wrench (..., 6)): one period of trials that go on, a period of
+    `period_steps` physics steps (module docstring).
 
     wrench: what the compliance sees (goal frame, at the tcp), after the F/T pipeline and the
-    damping. On NumPy the chatter ring is written in place (`array_api.ring_write`).
+    damping. zero_nonfinite: a non-finite torque becomes 0 (the engines, whose end tests then
+    see the physics); False: returned as it is (the robot runtime stops the arm on it). On NumPy
+    the chatter ring is written in place (`array_api.ring_write`).
     """
     xp = namespace_of(meas.ft, meas.qvel)
     step, goal_rot = state.step, consts.skill.goal_rot
@@ -194,22 +212,23 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     ring = ring_write(state.chatter_ring, step, xp.abs(axial - state.axial), step >= 1)
     lever = meas.ft_pos - meas.tcp_pos
     wrench = wrench_to_goal(sensed, meas.ft_rot, lever, goal_rot)
-    a = config.coupling_pole
+    a = config.coupling_pole**period_steps  # a first-order lag held over n steps
     coupled = a * state.coupled + (1.0 - a) * wrench
-    skill = consts.skill
+    skill, dt = consts.skill, config.timestep * period_steps
     aligned = aligned_rotation(control.search, state.aligned, coupled, meas.tcp_pos,
-                               skill.goal_pos, skill.goal_rot, config.timestep)  # fmt: skip
+                               skill.goal_pos, skill.goal_rot, dt)  # fmt: skip
     spiral = spiral_state(control.search, state.spiral, coupled, meas.tcp_pos, skill.goal_pos,
-                          skill.goal_rot, config.timestep)  # fmt: skip
-    settle = state.settle
+                          skill.goal_rot, dt)  # fmt: skip
+    settle, steps = state.settle, physics_steps(step, period_steps)
     if config.end_settled:
-        settle = settle_update(settle, step, meas.qvel, meas.tcp_pos, coupled, config)
+        settle = settle_update(settle, steps, meas.qvel, meas.tcp_pos, coupled, config,
+                               period_steps)  # fmt: skip
     torques = skill_torque(
         control,
         consts.skill,
         basis,
         Measurement(
-            t=step * config.timestep,
+            t=steps * config.timestep,
             tcp_pos=meas.tcp_pos,
             tcp_rot=meas.tcp_rot,
             jac=meas.jac,
@@ -222,7 +241,8 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
             spiral=spiral,
         ),
     )
-    torques = xp.where(xp.isfinite(torques), torques, 0.0)
+    if zero_nonfinite:
+        torques = xp.where(xp.isfinite(torques), torques, 0.0)
     new = TrialState(step + 1, peak, stop, sensor_state, coupled, ring, axial, settle, aligned,
                      spiral)  # fmt: skip
     return new, torques, coupled
@@ -247,6 +267,7 @@ __all__ = [
     "ends",
     "make_consts",
     "period",
+    "physics_steps",
     "result",
     "start",
     "tree_map",

@@ -1,6 +1,6 @@
 """The CPU engine's lanes in worker processes: one GIL per process.
 
-`mujoco.run_trials(..., processes=P)` splits the trials into P interleaved shards (trial k goes
+`mujoco.run_on_cpu(..., processes=P)` splits the trials into P interleaved shards (trial k goes
 to shard k mod P) and runs each in a worker process with `threads` lanes (default 1); results
 come back in spec order, bit-identical to running them in this process (a trial's result depends
 on its spec and parameters only). Why: a lane holds the GIL for its whole NumPy pass (~4 µs per
@@ -59,7 +59,7 @@ def _start_worker(progress_queue, parent: int) -> None:
 def _run_shard(specs, params, config, threads, options) -> TrialResult:
     from mjx_peg.engines import lanes
 
-    return lanes.run_trials(
+    return lanes.run_in_threads(
         specs, params, config, threads=threads, progress=_progress_queue.put, **options
     )
 
@@ -143,7 +143,7 @@ def merge(n: int, shards: list[np.ndarray], parts: list[TrialResult]) -> TrialRe
     return TrialResult(**out)
 
 
-def run_trials(
+def run_in_processes(
     specs: TrialSpec,
     params: ControllerParams,
     config: TrialConfig,

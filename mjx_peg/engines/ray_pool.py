@@ -1,8 +1,8 @@
 """The CPU engine's trials on a Ray cluster: one actor per CPU, each a lane of C MuJoCo.
 
-`mujoco.run_trials(..., ray=ADDRESS)` joins a cluster (`"auto"`: the one `ray start` runs on
+`mujoco.run_on_cpu(..., ray=ADDRESS)` joins a cluster (`"auto"`: the one `ray start` runs on
 this node; `"local"`: starts one on this machine; else `HOST:PORT`), keeps one actor per CPU the
-cluster offers (`Lane`: each runs `lanes.run_trials` on its share in-process, keeping its
+cluster offers (`Lane`: each runs `lanes.run_in_threads` on its share in-process, keeping its
 `mujoco.batch` simulations warm between calls, as a worker process of `engines/processes.py`
 does), splits the trials into interleaved pieces (trial k to piece k mod P: one per actor,
 up to four per actor for large calls), hands each actor the next piece as it finishes one, and
@@ -58,7 +58,7 @@ class Lane:
     def run(self, specs: TrialSpec, params: ControllerParams, config: TrialConfig, options):
         from mjx_peg.engines import lanes
 
-        return lanes.run_trials(specs, params, config, threads=1, **options)
+        return lanes.run_in_threads(specs, params, config, threads=1, **options)
 
     def pid(self) -> int:
         import os
@@ -122,7 +122,7 @@ def shutdown() -> None:
         ray.shutdown()
 
 
-def run_trials(
+def run_on_cluster(
     specs: TrialSpec,
     params: ControllerParams,
     config: TrialConfig,

@@ -6,7 +6,7 @@ mjx-peg-baseline --linear-mm 3 --angular-deg 4 --trials 100   # per shape, 60 s 
 from __future__ import annotations
 
 from mjx_peg import cli, signals
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
 
 PROG = "mjx-peg-baseline"
@@ -28,7 +28,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--seed", type=cli.SEED, default=1, help="default 1")
     cli.add_grasp_model_option(p, constants.GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), "paper")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS, "paper")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     args = p.parse_args(argv)
     shapes = [s.strip() for s in args.shapes.split(",") if s.strip()]

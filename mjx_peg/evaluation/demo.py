@@ -37,7 +37,7 @@ def run_demo(specs: TrialSpec, vector: np.ndarray, config: TrialConfig, frames: 
         if frames and step % every == 0:
             snapshots.append(last[0])
 
-    result = engine.run_trials(
+    result = engine.run_on_cpu(
         specs, params, config, threads=1, slots_per_thread=1, observer=observe
     )
     trace = {k: np.asarray(v) for k, v in trace.items()}

@@ -97,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _controller(policy: str):
-    from mjx_peg.evaluation.grid import load_controller
+    from mjx_peg.evaluation.runner import load_controller
 
     return load_controller(policy)
 
@@ -106,7 +106,6 @@ def trial_from_args(args):
     """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.policy.export import policy_skill
-    from mjx_peg.skill.search import skill_config
     from mjx_peg.world.task import TaskConfig, sample_trials
 
     for dest, value in _DEFAULTS.items():
@@ -119,7 +118,7 @@ def trial_from_args(args):
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
     label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"
-    search = skill_config(policy_skill(args.policy))  # the skill the policy was trained with
+    search = policy_skill(args.policy).config  # the skill its manifest names
     return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 
 
@@ -128,16 +127,17 @@ def trial_from_eval(args):
     plus what the evaluation recorded for that trial."""
     import numpy as np
 
-    from mjx_peg.evaluation import grid as evaluation
+    from mjx_peg.evaluation import config as eval_config
+    from mjx_peg.evaluation import eval_dir
 
     given = ["--" + k.replace("_", "-") for k in _DEFAULTS if getattr(args, k) is not None]
     if given:
         raise UsageError(f"--replay takes the trial from the evaluation; drop {', '.join(given)}")
-    config, policy_dir = evaluation.read_eval_dir(args.replay)
+    config, policy_dir = eval_dir.read_eval_dir(args.replay)
     n_ranges = len(config.ranges)
     if args.range is None or not 0 <= args.range < n_ranges:
         raise UsageError(f"--replay needs --range between 0 and {n_ranges - 1}, got {args.range}")
-    recorded = evaluation.load_range(pathlib.Path(args.replay), config, args.range)
+    recorded = eval_dir.load_range(pathlib.Path(args.replay), config, args.range)
     if recorded is None:
         raise UsageError(f"range {args.range} of {args.replay} has not finished")
     if args.trial in ("failure", "success"):
@@ -152,7 +152,7 @@ def trial_from_eval(args):
             f"--trial must be failure, success or an index below {config.trials}, "
             f"got {args.trial!r}"
         )
-    if config.contact_model < evaluation.CONTACT_MODEL:
+    if config.contact_model < eval_config.CONTACT_MODEL:
         raise UsageError(
             f"{args.replay} was evaluated before credible contact (another trial: no F/T "
             "pipeline, no protective stop); it cannot be replayed"
@@ -168,7 +168,7 @@ def trial_from_eval(args):
         raise UsageError(
             f"{policy}/policy.npz has changed since the evaluation ({config.policy[:19]})"
         )
-    specs = evaluation.range_specs(config, args.range)
+    specs = eval_config.range_specs(config, args.range)
     params = controller(specs)[index : index + 1]  # the whole range, as the evaluation computed it
     linear_mm, angular_deg = config.ranges[args.range]
     shape = constants.SHAPES[int(specs.shape_id[index])]
@@ -199,17 +199,17 @@ def main(argv=None) -> int:
         specs, vector, config, label, recorded = trial_from_eval(args)
     # The output location, before any work: never an input, nothing replaced without --force.
     policy = None if args.replay is not None else args.policy
-    cli.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
+    outdir.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
     with outdir.exclusive(args.out):
         outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
         if args.out.is_dir() and not args.force:
-            cli.refuse_or_move(outputs, False, PROG)
+            outdir.refuse_or_move(outputs, False)
         if args.frames:
             from mjx_peg.world import render
 
             render.check_backend()  # or one line: before the trial runs
-        cli.prepare_dir(args.out)
-        cli.refuse_or_move(outputs, args.force, PROG)
+        outdir.prepare_dir(args.out)
+        outdir.refuse_or_move(outputs, args.force, lambda text: cli.note(PROG, text))
         if args.frames:
             from mjx_peg.world import gl
 
@@ -219,13 +219,13 @@ def main(argv=None) -> int:
 
         mujoco_log.send_to(args.out)
         run = run_demo(specs, vector, config, args.frames)
-        cli.write_atomic(outputs[0], lambda path: plot_trial(run, path))
+        outdir.write_atomic(outputs[0], lambda path: plot_trial(run, path))
         wrote = [outputs[0].name]
         strip = frame_strip(run, args.frames) if args.frames else None
         if strip is not None:
             from mjx_peg.world.render import save_png
 
-            cli.write_atomic(outputs[1], lambda path: save_png(path, strip))
+            outdir.write_atomic(outputs[1], lambda path: save_png(path, strip))
             wrote.append(outputs[1].name)
     print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:

@@ -1,14 +1,16 @@
-"""`python eval.py` (`mjx-peg-eval`): the command line of the evaluation grid (`grid.py`).
+"""`python eval.py` (`mjx-peg-eval`): the command line of the evaluation grid.
 
     python eval.py --policy runs/quick --grid paper-small --out eval/quick
 
 Parses and checks the flags, holds --out (`outdir.exclusive`), runs or resumes the grid and writes
-its outputs; every rule of the grid itself lives in `evaluation/grid.py`.
+its outputs; every rule of the grid itself lives in the evaluation's modules: `config` (the
+grids), `eval_dir` (the output directory), `runner` (the trials), `report` (the outputs).
 """
 
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 import time
 from collections.abc import Sequence
@@ -20,12 +22,10 @@ PROG = "eval.py"
 
 
 def check_engine_options(engine: str, options: dict) -> None:
-    """ValueError unless the engine's run_trials takes every option by name."""
-    import importlib
-    import inspect
+    """UsageError unless the engine's runner (`engines.engine_runner`) takes every option."""
+    from mjx_peg.engines import engine_runner
 
-    impl = importlib.import_module(f"mjx_peg.engines.{engine}")
-    params = inspect.signature(impl.run_trials).parameters
+    params = inspect.signature(engine_runner(engine)).parameters
     takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
     for key in options:
         if key in ("specs", "params", "config", "progress") or not (takes_any or key in params):
@@ -34,9 +34,10 @@ def check_engine_options(engine: str, options: dict) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.engines import ENGINES
-    from mjx_peg.evaluation import stats as es
-    from mjx_peg.evaluation.grid import DEFAULT_CHUNK_TRIALS, DEFAULT_SHAPES, GRIDS
-    from mjx_peg.skill.search import SKILLS
+    from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS
+    from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS
+    from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
+    from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
 
     p = cli.Parser(
@@ -108,13 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
         "that has settled, at rest or repeating the same motion, ends early; same outcome)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS)
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
         "--threads", type=cli.integer(1, 64), help="engine option threads (if it takes it)"
     )
-    p.add_argument("--workers", type=cli.WORKERS, help="engine option workers (if it takes it)")
     cli.add_processes_option(p, "--threads")
     cli.add_ray_option(p)
     p.add_argument(
@@ -139,7 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--paper",
         default="auto",
-        choices=("auto", *es.PAPER_CONDITIONS, "none"),
+        choices=("auto", *PAPER_CONDITIONS, "none"),
         help="the paper's numbers to print beside ours (auto: by shape and size)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -149,12 +149,14 @@ def build_parser() -> argparse.ArgumentParser:
 def config_from_args(args: argparse.Namespace, policy_label: str):
     """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
     from mjx_peg.engines import resolve_engine
-    from mjx_peg.evaluation.grid import MAX_ERROR, EvalConfig, grid_axes, parse_ranges
-    from mjx_peg.policy.export import policy_skill
+    from mjx_peg.evaluation.config import MAX_ERROR, EvalConfig, grid_axes
+    from mjx_peg.policy.export import choose_skill
     from mjx_peg.world.constants import SHAPES
 
-    linear = None if args.linear_mm is None else parse_ranges(args.linear_mm, "--linear-mm")
-    angular = None if args.angular_deg is None else parse_ranges(args.angular_deg, "--angular-deg")
+    linear = None if args.linear_mm is None else cli.parse_ranges(args.linear_mm, "--linear-mm")
+    angular = (
+        None if args.angular_deg is None else cli.parse_ranges(args.angular_deg, "--angular-deg")
+    )
     linear, angular, trials = grid_axes(
         args.grid, args.size, linear, angular, linear_absolute=args.linear_absolute
     )
@@ -181,6 +183,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
     for shape in shapes:
         if shape not in SHAPES:
             raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+    skill = choose_skill(args.skill, args.policy)
     return EvalConfig(
         policy=policy_label,
         grid=args.grid,
@@ -192,7 +195,8 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
         time_limit_s=args.time_limit,
         full_time_limit=args.full_time_limit,
         grasp_model=args.grasp_model,
-        skill=args.skill or policy_skill(args.policy),
+        skill=skill.name,
+        skill_constants=skill.config,
         seed=args.seed,
         engine=resolve_engine(args.engine),
     )
@@ -202,20 +206,19 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
 def main(argv: Sequence[str] | None = None) -> int:
     """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
     args = build_parser().parse_args(argv)
-    from mjx_peg.evaluation import stats as es
-    from mjx_peg.evaluation.grid import (
+    from mjx_peg.evaluation.eval_dir import (
         GRID_FILE,
         PAPER_PNG,
         SUCCESS_PNG,
         SUMMARY_FILE,
         TIME_PNG,
-        load_controller,
         load_evaluation_grid,
         prepare_out_dir,
         range_path,
-        run_evaluation,
-        write_outputs,
     )
+    from mjx_peg.evaluation.paper_tables import paper_condition_for
+    from mjx_peg.evaluation.report import write_outputs
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
     from mjx_peg.policy.shipped import resolve_policy
 
     out = args.out
@@ -223,9 +226,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     policy_label, controller = load_controller(policy)
     config = config_from_args(args, policy_label)
     if args.ray is not None:
-        options = cli.ray_options(args, config.engine, ("--threads", "--workers"))
+        options = cli.ray_options(args, config.engine, ("--threads",))
     else:
-        options = {k: getattr(args, k) for k in ("threads", "workers") if getattr(args, k)}
+        options = {"threads": args.threads} if args.threads else {}
         processes = cli.resolve_processes(args.processes, config.engine)
         if processes is not None:
             options["processes"] = processes
@@ -236,11 +239,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise UsageError(f"--compare {exc}") from None
     paper_name = args.paper
     if paper_name == "auto":
-        paper_name = es.paper_condition_for(config.shapes, config.size_mm)
+        paper_name = paper_condition_for(config.shapes, config.size_mm)
     elif paper_name == "none":
         paper_name = None
-    cli.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    cli.check_out(out)
+    outdir.check_apart(out, {"--policy": policy, "--compare": args.compare})
+    outdir.check_out(out)
     if args.ray is not None:  # join the cluster before anything is written
         from mjx_peg.engines import ray_pool
 

@@ -19,13 +19,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from mjx_peg import cli  # noqa: E402
-from mjx_peg.evaluation.stats import (  # noqa: E402
-    QUARTERS,
-    GridTable,
-    PaperCondition,
-    quarter_stats,
-)
+from mjx_peg import outdir  # noqa: E402
+from mjx_peg.evaluation.grid_table import GridTable  # noqa: E402
+from mjx_peg.evaluation.paper_tables import PaperCondition  # noqa: E402
+from mjx_peg.evaluation.stats import QUARTERS, quarter_stats  # noqa: E402
 
 SUCCESS_BOX_PCT, SUCCESS_BOLD_PCT = 95.0, 90.0  # the paper's Fig. 6 thresholds
 TIME_BOX_S, TIME_BOLD_S = 3.0, 4.0  # the paper's Fig. 7 thresholds
@@ -175,6 +172,6 @@ def quarter_stats_by_metric(grid: GridTable) -> dict[str, tuple[list, list, list
 
 def _save(fig, path) -> Path:
     try:
-        return cli.write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120))
+        return outdir.write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120))
     finally:
         plt.close(fig)

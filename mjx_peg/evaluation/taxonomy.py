@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from mjx_peg.world import scene
+from mjx_peg.world import mjcf
 from mjx_peg.world.constants import HOLE_DEPTH, SHAPES
 from mjx_peg.world.task import TrialSpec, hole_frame
 
@@ -49,7 +49,7 @@ def classify(specs: TrialSpec, arrays) -> np.ndarray:
     depth, lateral = tip_at_hole(specs, arrays["final_tip_pos"])
     names = [SHAPES[int(i)] for i in specs.shape_id]
     size = np.asarray(specs.size, dtype=np.float64)
-    hole = np.array([scene.hole_inradius(s, float(z)) for s, z in zip(names, size, strict=True)])
+    hole = np.array([mjcf.hole_inradius(s, float(z)) for s, z in zip(names, size, strict=True)])
     rim = hole + size * np.array([_CIRCUMRADIUS[s] for s in names])
     below = depth > WEDGED_DEPTH
     where = np.select(

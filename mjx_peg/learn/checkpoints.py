@@ -24,7 +24,7 @@ import jax
 import numpy as np
 import orbax.checkpoint as ocp
 
-from mjx_peg import cli
+from mjx_peg import errors
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import restore_noise
 
@@ -111,7 +111,7 @@ class Checkpoints:
                 raise UsageError(f"{len(leaves)} arrays, the state has another number")
             return jax.tree.unflatten(jax.tree.structure(template), leaves)
         except Exception as e:  # a corrupt or truncated checkpoint can fail anywhere inside Orbax
-            text = cli.message(e).split(" [tensorstore_spec=")[0]
+            text = errors.message(e).split(" [tensorstore_spec=")[0]
             text = text if len(text) <= 300 else text[:297] + "..."
             raise UsageError(
                 f"checkpoint {self.directory / str(step)} is corrupt or truncated "

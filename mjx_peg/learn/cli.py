@@ -31,7 +31,7 @@ MAX_NUM_ENVS = 65_536  # trials per iteration
 def parser() -> argparse.ArgumentParser:
     from mjx_peg.engines import ENGINES
     from mjx_peg.learn.config import ACTION_MAPS, PRESETS
-    from mjx_peg.skill.search import SKILLS
+    from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS
 
     p = cli.Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -69,12 +69,12 @@ def parser() -> argparse.ArgumentParser:
         "at rest or repeating the same motion, ends early with the same outcome)",
     )
     p.add_argument(
-        "--workers",
-        type=cli.WORKERS,
+        "--threads",
+        type=cli.THREADS,
         help="CPU engine threads: per worker process (default 1), or of this process with "
         "--processes 0 (default: all cores)",
     )
-    cli.add_processes_option(p, "--workers")
+    cli.add_processes_option(p, "--threads")
     cli.add_ray_option(p)
     p.add_argument(
         "--action-map",
@@ -83,7 +83,7 @@ def parser() -> argparse.ArgumentParser:
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
-    cli.add_skill_option(p, tuple(SKILLS), None, "the preset's (spiral)")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -174,15 +174,15 @@ def main(argv=None) -> int:
 
     engine = resolve_engine(config.engine)
     if args.ray is not None:
-        options = cli.ray_options(args, engine, ("--workers",))
+        options = cli.ray_options(args, engine, ("--threads",))
     else:
         options = {
-            "workers": args.workers,
+            "threads": args.threads,
             "processes": cli.resolve_processes(args.processes, engine),
         }
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
-        cli.check_apart(out, {"--init-from": config.init_from})
+        outdir.check_apart(out, {"--init-from": config.init_from})
     cli.check_jax()
     if args.distributed:
         join_distributed()

@@ -24,7 +24,7 @@ from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -38,18 +38,19 @@ MAX_HIDDEN = 4096  # units of a hidden layer
 
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
-    """Everything that defines a training run (written to RUN_DIR/config.json)."""
+    """Everything that defines a training run (written to RUN_DIR/config.json); the defaults are
+    the default preset, `quick`."""
 
     preset: str = "quick"
     shapes: tuple[str, ...] = ("circle", "square")
     size_mm: tuple[float, ...] = (50.0,)
-    linear_mm: float = 4.0  # +- localization x, y and grasp z error range
-    angular_deg: float = 6.0  # +- localization yaw and grasp tilt range
+    linear_mm: float = 8.0  # +- localization x, y and grasp z error range (the paper's)
+    angular_deg: float = 12.0  # +- localization yaw and grasp tilt range (the paper's)
     # Per training trial. Under credible contact (a filtered, delayed sensor, compliance damping,
     # a 2 s approach) the baseline inserts in 14.7 s at the median (500 trials, 60 s): the 3-5 s
     # limits used before left almost every trial a failure and nothing to learn from.
     time_limit_s: float = 20.0
-    trials: int = 12288  # budget, rounded up to whole iterations
+    trials: int = 3584  # budget, rounded up to whole iterations (14 of 256)
     num_envs: int = 256  # trials per iteration (split across devices)
     # One full-batch gradient step per epoch: a 38-dim contextual bandit with a noisy binary
     # outcome; minibatches of 32-64 trials made each iteration chase noise (KL 0.1-0.2 per
@@ -82,9 +83,12 @@ class TrainConfig:
     # Where the grasp errors go (constants.GRASP_MODELS): the board's height and tilt (the
     # paper's); config.json files without it were "flange" (the peg in the gripper)
     grasp_model: str = "board"
-    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "search"; config.json
-    # files without it were "paper"
-    skill: str = "paper"
+    # The skill (skill.search.SKILLS): "paper", the paper's as written, or "spiral", ours;
+    # config.json files without it were "paper" (file_versions)
+    skill: str = "spiral"
+    # Its constants (a SkillConfig, or its JSON record); None: the named skill's
+    # (search.named_skill). config.json records every one.
+    skill_constants: SkillConfig | None = None
 
     def __post_init__(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
@@ -147,7 +151,8 @@ class TrainConfig:
                 f"--num-envs {self.num_envs} must be a multiple of num_minibatches "
                 f"{self.num_minibatches}"
             )
-        skill_config(self.skill)  # a known skill
+        named = named_skill(self.skill, self.skill_constants)  # a known skill, valid constants
+        object.__setattr__(self, "skill_constants", named.config)
         self.task()  # validates the shapes, sizes and error ranges
 
     @property
@@ -171,7 +176,7 @@ class TrainConfig:
         return TrialConfig(
             time_limit_s=self.time_limit_s,
             end_settled=not self.full_time_limit,
-            search=skill_config(self.skill),
+            search=self.skill_constants,
         )
 
     def map_centre(self):
@@ -179,10 +184,16 @@ class TrainConfig:
         return baseline_params() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
+        """A copy with `changes`; another skill comes with its own constants unless given."""
+        if "skill" in changes and "skill_constants" not in changes:
+            changes["skill_constants"] = None
         return dataclasses.replace(self, **changes)
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        return {
+            **dataclasses.asdict(self),
+            "skill_constants": constants_record(self.skill_constants),
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> TrainConfig:
@@ -197,14 +208,13 @@ class TrainConfig:
 
 
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with
-# the spiral: every preset is this one with a budget or a shape changed.
-_PAPER = TrainConfig(preset="paper", linear_mm=8.0, angular_deg=12.0, trials=8192, skill="spiral")
+# the spiral: every preset is the default one with a budget or a shape changed.
+_PAPER = TrainConfig(preset="paper", trials=8192)
 
 PRESETS: dict[str, TrainConfig] = {
-    # 3,584 trials (14 iterations): python train.py in under 10 minutes on 2 cores (BENCHMARKS.md,
-    # "Training"). At the paper's error ranges: at +-4 mm / +-6 deg the starting controller
-    # already inserts 97.4 % and leaves too few failures to learn from (docs/guide/training.md)
-    "quick": _PAPER.replace(preset="quick", trials=3584),
+    # 3,584 trials at the paper's error ranges: python train.py on 2 cores in minutes
+    # (docs/design/training_presets.md)
+    "quick": TrainConfig(),
     "paper": _PAPER,
     "transfer": _PAPER.replace(
         preset="transfer",

@@ -16,7 +16,7 @@ import csv
 import io
 from pathlib import Path
 
-from mjx_peg import cli, inputs
+from mjx_peg import errors, inputs, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
@@ -97,7 +97,7 @@ class RunDir:
         except (ValueError, TypeError, AttributeError) as e:
             raise UsageError(
                 f"{self.path} is not a training run ({self.config_path.name}: "
-                f"{cli.message(e)[:100]})"
+                f"{errors.message(e)[:100]})"
             ) from None
 
     def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
@@ -105,7 +105,7 @@ class RunDir:
         directory), "resume" (an unfinished run of this config) or "replace" (--force on a run:
         it is moved aside); UsageError (one line) for everything else."""
         if init_from is not None:
-            cli.check_apart(self.path, {"--init-from": init_from})
+            outdir.check_apart(self.path, {"--init-from": init_from})
         plan = self.out.plan(config.to_json(), force)
         if plan == "resume" and self.is_finished():
             raise UsageError(
@@ -127,7 +127,7 @@ class RunDir:
         for path, columns in tables:  # whole or not at all: a full disk leaves no empty table
             text = io.StringIO(newline="")
             csv.writer(text).writerow(columns)
-            cli.write_atomic(path, text.getvalue())
+            outdir.write_atomic(path, text.getvalue())
 
     def truncate_tables(self, trials: int) -> None:
         """Drop rows written after the checkpoint that holds `trials` trials."""
@@ -153,12 +153,12 @@ class RunDir:
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
             except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
                 raise UsageError(
-                    f"{path} is corrupt ({type(e).__name__}: {cli.message(e)}); move the run "
+                    f"{path} is corrupt ({type(e).__name__}: {errors.message(e)}); move the run "
                     "aside (--force) to start over"
                 ) from None
             text = io.StringIO(newline="")
             csv.writer(text).writerows([header] + kept)
-            cli.write_atomic(path, text.getvalue())
+            outdir.write_atomic(path, text.getvalue())
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
         """Append an iteration's rows (a resume cuts off rows a failed append left behind)."""

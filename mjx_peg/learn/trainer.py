@@ -19,7 +19,7 @@ import jax.experimental.multihost_utils
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_peg import cli, signals
+from mjx_peg import outdir, signals
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import checkpoints, ppo
@@ -141,7 +141,9 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
         },
     )
     title = f"{config.preset}: {run.path.name}"
-    cli.write_atomic(run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title))
+    outdir.write_atomic(
+        run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title)
+    )
 
 
 def train(

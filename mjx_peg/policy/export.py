@@ -4,9 +4,10 @@ A run directory's policy is plain arrays (`policy.npz`, read with allow_pickle=F
 manifest that says what they mean: schema version, observation names and normalization, layer
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
-without a map used), and the config that made it. `load_policy` checks all of it and raises
-`PolicyError` (one line) on anything missing, truncated or inconsistent. No JAX is imported
-here: the real robot runs this.
+without a map used), the skill to run it with (its name and every constant: the skill its
+published numbers used; by default the one it was trained with) and the config that made it.
+`load_policy` checks all of it and raises `PolicyError` (one line) on anything missing,
+truncated or inconsistent. No JAX is imported here: the real robot runs this.
 
     policy = load_policy("runs/quick")
     vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
@@ -24,7 +25,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.policy import network, observation, shipped
 from mjx_peg.skill import params
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILLS, NamedSkill, named_skill
 from mjx_peg.world.constants import SHAPES
 
 SCHEMA = "mjx-peg-policy"
@@ -49,9 +50,14 @@ class Policy:
     centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
 
     @property
-    def skill(self) -> str:
-        """The skill it was trained with (skill.search.SKILLS); "paper" for runs made before."""
-        return file_versions.train_config(self.manifest.get("config", {}))["skill"]
+    def skill(self) -> NamedSkill:
+        """The skill to run it with unless told otherwise (`file_versions.manifest_skill`)."""
+        return _run_skill(self.manifest)
+
+    @property
+    def trained_skill(self) -> NamedSkill:
+        """The skill it was trained with ("paper" for runs made before skills had names)."""
+        return trained_skill(self.manifest.get("config", {}))
 
     @property
     def shapes(self) -> tuple[str, ...]:
@@ -116,6 +122,17 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
         raise PolicyError(f"{where}: {e}") from None
 
 
+def _run_skill(manifest: dict) -> NamedSkill:
+    record = file_versions.manifest_skill(manifest)
+    return named_skill(record["name"], record["constants"])
+
+
+def trained_skill(config: dict) -> NamedSkill:
+    """The skill a training config (config.json) trained with, its constants included."""
+    config = file_versions.train_config(config)
+    return named_skill(config["skill"], config["skill_constants"])
+
+
 def save_policy(
     run_dir,
     layers,
@@ -124,8 +141,10 @@ def save_policy(
     config: dict,
     extra: dict | None = None,
     centre=None,
+    skill: NamedSkill | None = None,
 ) -> Path:
-    """Write `policy.npz` + `manifest.json` into run_dir, each atomically."""
+    """Write `policy.npz` + `manifest.json` into run_dir, each atomically. `skill`: the skill to
+    run it with (default: the one `config` trained with)."""
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     arrays = {
@@ -153,6 +172,7 @@ def save_policy(
             "param_names": list(params.PARAM_NAMES),
             "ranges": _ranges_json(params.DEFAULT_RANGES, centre),
         },
+        "skill": (skill or trained_skill(config)).record(),
         "config": config,
         **(extra or {}),
     }
@@ -161,13 +181,21 @@ def save_policy(
     return run_dir / POLICY_FILE
 
 
-def policy_skill(policy) -> str:
-    """The skill `policy` runs unless told otherwise: the one it was trained with, "paper" for
-    the hand-tuned baseline (the string "baseline"). `policy`: a loaded Policy, "baseline", or
-    what `load_policy` takes (PolicyError if that is bad)."""
+def policy_skill(policy) -> NamedSkill:
+    """The skill `policy` runs unless told otherwise: the one its manifest names to run it with
+    (`Policy.skill`), "paper" for the hand-tuned baseline (the string "baseline"). `policy`: a
+    loaded Policy, "baseline", or what `load_policy` takes (PolicyError if that is bad)."""
     if isinstance(policy, Policy):
         return policy.skill
-    return "paper" if str(policy) == "baseline" else load_policy(policy).skill
+    if str(policy) == "baseline":
+        return NamedSkill("paper", SKILLS["paper"])
+    return load_policy(policy).skill
+
+
+def choose_skill(name: str | None, policy) -> NamedSkill:
+    """The skill a command runs: `name` (a --skill, `SKILLS`, its constants as they are today)
+    where given, else the policy's (`policy_skill`)."""
+    return policy_skill(policy) if name is None else named_skill(name)
 
 
 MAX_LAYERS, MAX_WIDTH = 16, 4096  # a policy network no larger than this is read
@@ -197,7 +225,7 @@ def _manifest_problem(manifest: dict) -> str | None:
     if not isinstance(config, dict):
         return "config is not an object"
     skill = config.get("skill", "paper")
-    if not isinstance(skill, str) or skill not in SKILLS:
+    if not isinstance(skill, str) or not (skill in SKILLS or skill in file_versions.FORMER_SKILLS):
         return f"config.skill {str(skill)[:40]} is not one of {', '.join(SKILLS)}"
     shapes = config.get("shapes", [])
     if not isinstance(shapes, list) or not all(isinstance(s, str) and s in SHAPES for s in shapes):
@@ -246,6 +274,10 @@ def load_policy(path) -> Policy:
         centre = _map_centre(manifest, manifest_path)
     except (KeyError, TypeError) as e:
         raise PolicyError(f"{manifest_path} lacks {e} (not a complete policy manifest)") from None
+    try:
+        _run_skill(manifest)
+    except (UsageError, KeyError, TypeError) as e:
+        raise PolicyError(f"{manifest_path}: its skill is not readable ({e})") from None
     if names != list(observation.OBS_NAMES):
         raise PolicyError(
             f"{manifest_path}: observation.names is not {', '.join(observation.OBS_NAMES)}"

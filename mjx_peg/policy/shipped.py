@@ -12,8 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from mjx_peg import cli
-from mjx_peg.errors import UsageError
+from mjx_peg.errors import UsageError, shown_path
 
 SHIPPED_DIR = Path(__file__).resolve().parents[2] / "policies"
 
@@ -30,7 +29,7 @@ def resolve_policy(policy, flag: str = "--policy", baseline: bool = True) -> str
     as given, else the shipped policy of that name (relative to the working directory where it
     lies below it). UsageError (one line naming `flag` and the shipped ones) if it is neither."""
     text = str(policy)
-    shown = cli.shown_path(text)
+    shown = shown_path(text)
     try:
         exists = Path(text).exists()
     except (OSError, ValueError) as e:  # a name too long, a NUL character

@@ -10,8 +10,9 @@ command rate must divide the 500 Hz physics (500, 250, 166.7, 125, 100, ... Hz);
 between commands. The default is 500 Hz, the rate at which a UR e-Series controller (the UR5e)
 exchanges RTDE data; the paper sent effort commands at 125 Hz, and there the skill, whose approach
 was tuned at 500 Hz, protective-stops at touchdown in most trials (README "On an arm"). Writes
-`runs.csv` under --out, one row per trial as it ends (a crash keeps the finished ones); an earlier
-runs.csv is replaced only with --force, which moves it aside.
+`runs.csv` under --out, one row per trial as it ends (a crash keeps the finished ones), and
+`skill.json`, the skill the trials ran (its name and every constant); an earlier runs.csv is
+replaced only with --force, which moves it aside.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from pathlib import Path
 from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
 
@@ -37,6 +38,7 @@ PHYSICS_HZ = 1.0 / constants.TIMESTEP
 COLUMNS = ("trial", "success", "time_s", "commands", "stopped", "protective_stop", "settled",
            "peak_force_n", "chatter_n")  # fmt: skip
 RESULTS = "runs.csv"
+SKILL_FILE = "skill.json"  # the skill the runs ran: {"name", "constants"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
-    cli.add_skill_option(p, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    cli.add_skill_option(p, SKILL_DESCRIPTIONS)
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
@@ -193,7 +195,7 @@ def main(argv=None) -> int:
     # The output location, before any trial: never the policy, one writer at a time, no earlier
     # result replaced without --force (moved aside then), writable; then one row per trial as
     # it ends.
-    cli.check_apart(args.out, {"--policy": args.policy})
+    outdir.check_apart(args.out, {"--policy": args.policy})
     with outdir.exclusive(args.out):
         return _simulate(args, task, steps, policy)
 
@@ -203,23 +205,24 @@ def _simulate(args, task, steps: int, policy) -> int:
     import numpy as np
 
     from mjx_peg.engines.trial import TrialConfig
-    from mjx_peg.policy.export import policy_skill
+    from mjx_peg.outdir import write_json
+    from mjx_peg.policy.export import choose_skill
     from mjx_peg.robot import runtime, sim_arm
-    from mjx_peg.skill.search import skill_config
     from mjx_peg.world.task import sample_trials
 
     results = args.out / RESULTS
     if _has_rows(results) or results.is_symlink():
-        cli.refuse_or_move([results], args.force, PROG)
-    cli.prepare_dir(args.out)
+        outdir.refuse_or_move([results], args.force, lambda text: cli.note(PROG, text))
+    outdir.prepare_dir(args.out)
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(args.out)
     specs = sample_trials(task, args.seed, args.trials)
     holes = [runtime.HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [runtime.controller_vector(policy, hole) for hole in holes]
-    search = skill_config(args.skill or policy_skill(policy))
-    config = TrialConfig(time_limit_s=args.time_limit, search=search)
+    skill = choose_skill(args.skill, policy)
+    write_json(args.out / SKILL_FILE, skill.record())
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     rows, start = [], time.perf_counter()
     bar = None
     if not args.no_progress:
@@ -236,8 +239,8 @@ def _simulate(args, task, steps: int, policy) -> int:
                     arm = sim_arm.SimArm(specs, i, command_steps=steps,
                                          success_height=config.success_height,
                                          actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
-                    skill = runtime.SkillRuntime(vector, hole, config)
-                    run = runtime.run_skill(arm, skill, done=arm.inserted)
+                    skill_run = runtime.SkillRuntime(vector, hole, config)
+                    run = runtime.run_skill(arm, skill_run, done=arm.inserted)
                     row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
                            int(run.protective_stop), int(run.stopped == "settled"),
                            f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip

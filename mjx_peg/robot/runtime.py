@@ -3,21 +3,16 @@
     runtime = SkillRuntime(controller_vector("runs/paper", hole), hole)
     run = run_skill(arm, runtime, time_limit_s=60.0)
 
-`SkillRuntime` holds one insertion: the goal from the estimated hole (as in `task.goal_pose`),
-the tare and the DMP's start taken at the first reading, then, on each reading, the F/T sensor's
-software filter (`sensor.filter_step`, the nominal cutoff of `TrialConfig.sensor`), the compliance
-damping's low-pass and `control_step.skill_torque`. It stops the skill (`SafetyStop`) on a
-non-finite measurement or torque, a joint faster than `TrialConfig.max_joint_speed` (twice the
-UR5e's 180 deg/s, where the real arm would protective-stop; the engines count such a trial as
-failed, `unstable`), a sensed tool force beyond `TrialConfig.max_tool_force` (the UR5e's
-protective stop; checked at the next reading, as the engines do, which flag it `protective_stop`)
-or a clock that runs backwards, and `run_skill` stops a skill that has settled
-(`TrialConfig.end_settled`: at rest or repeating the same motion, the wrench the compliance sees
-included, it cannot insert any more; a failure, as the engines end it, stopped "settled"). The
-math runs on arrays with a leading batch dimension of 1, the engines' code path: on the simulated
-arm at 500 Hz a run follows the engine's trial to 1e-12 m in free motion and ends as it does (the
-wrench can differ from the engine's in the last bit, which contact can amplify;
-tests/robot/test_runtime.py).
+`SkillRuntime` runs the engines' control period (`engines/period.py`: `start`, `ends`,
+`advance`) on a batch of one: the goal from the estimated hole (as in `task.goal_pose`), the
+tare and the DMP's start taken at the first reading, then on each reading the period's end tests
+and its command. The arm's reading enters the period's F/T pipeline as a sensor whose sampling,
+noise, bias and latency are the arm's own (`sensor.filter_params`: the software filter alone);
+a command every n physics steps is a period of n steps. It stops the skill (`SafetyStop`) on a
+non-finite measurement or torque, a clock that runs backwards, and where the engines end a trial
+as a failure: a joint too fast (`unstable`) or the protective stop; `run_skill` stops a skill
+that has settled (`TrialConfig.end_settled`, stopped "settled"). On the simulated arm at 500 Hz a
+run is the C engine's trial (tests/robot/test_runtime.py).
 """
 
 from __future__ import annotations
@@ -28,14 +23,13 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mjx_peg.engines import period
 from mjx_peg.engines.trial import (
     TrialConfig,
     as_controller_params,
     control_config,
     fitted_basis,
-    is_settled,
-    settle_start,
-    settle_update,
+    is_success,
 )
 from mjx_peg.errors import UsageError
 from mjx_peg.policy import observation
@@ -43,16 +37,8 @@ from mjx_peg.policy.export import Policy, load_policy
 from mjx_peg.robot.arm import Arm, ArmState
 from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.control_step import (
-    Measurement,
-    external_wrench,
-    make_skill,
-    skill_torque,
-    start_state,
-    wrench_to_goal,
-)
+from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.search import aligned_rotation, spiral_state
 from mjx_peg.world import constants
 from mjx_peg.world.task import goal_pose
 
@@ -110,7 +96,8 @@ def controller_vector(policy: str | Policy, hole: HoleEstimate) -> np.ndarray:
 
 
 class SkillRuntime:
-    """One insertion with fixed controller numbers; `start` at the first reading, then `torque`."""
+    """One insertion with fixed controller numbers: `start` at the first reading, then per
+    reading `ends` (SafetyStop if the skill must stop) and `command`; `torque` is both."""
 
     def __init__(self, vector, hole: HoleEstimate, config: TrialConfig | None = None):
         self.config = cfg = config or TrialConfig()
@@ -119,119 +106,127 @@ class SkillRuntime:
         self.hole = hole
         self.basis = fitted_basis(cfg.movement)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
+        # The estimated hole as the trial's hole (`trial.is_success`): its axis from the table
+        # top (the board's bottom) up.
+        self.hole_origin = np.array([[hole.x, hole.y, 0.0]])
+        self.hole_axis = np.array([[0.0, 0.0, 1.0]])
         self.control = control_config(cfg)
-        self.skill = None
-        self.tare = np.zeros((1, 6))
+        self.consts = self.trial = None  # the period's constants and state, from `start`
         self.t0 = self.last_t = 0.0
         self.wrench = np.zeros(6)  # the last wrench the compliance saw (goal frame)
-        # The sensor's software filter and the compliance damping (their states), the last
-        # sensed tool force.
-        self.alpha = np.array([math.exp(-2.0 * math.pi * cfg.timestep * cfg.sensor.cutoff_hz)])
-        self.filtered = np.zeros((1, 6))
-        self.coupled = np.zeros((1, 6))
-        self.aligned = np.zeros((1, 3))  # the goal's rotation the search's alignment found (rad)
-        self.spiral = np.zeros((1, 3))  # the search's spiral state (search.spiral_state)
-        self.tool_force = self.peak_force = 0.0  # N: the last and the largest sensed force
-        self.settle = settle_start((1,))
         self.period_steps = 1  # physics steps (TrialConfig.timestep) per command; run_skill sets
 
     def start(self, state: ArmState) -> None:
         """Tare the F/T reading, take the DMP's start y0 from the tcp pose, start the clock."""
-        self.check(state)
-        self.tare = np.concatenate([state.force, state.torque])[None]
+        self._check_reading(state)
+        b = _one
+        cfg = self.config
+        tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
-        self.skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, self.config.dmp.tau)
-        self.filtered[:], self.coupled[:], self.aligned[:], self.spiral[:] = 0.0, 0.0, 0.0, 0.0
-        self.tool_force = 0.0
-        self.peak_force = 0.0
+        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau)
+        # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
+        # the software filter only, its pole for the command's period.
+        ft = sensor.filter_params(cfg.sensor, cfg.timestep, np.zeros(1, np.uint32),
+                                  self.period_steps)  # fmt: skip
+        self.consts = period.make_consts(skill, ft, tare, self.hole_origin, self.hole_axis,
+                                         np.array([self.hole.size]), b(state.tcp_pos))  # fmt: skip
+        self.trial = period.start(cfg, self.consts)
         self.t0 = self.last_t = state.t
+        self.ends(state)
 
     def elapsed(self, state: ArmState) -> float:
         return state.t - self.t0
 
-    def check(self, state: ArmState) -> None:
-        """Raise SafetyStop unless the reading is finite, slow enough and later than the last."""
+    def _check_reading(self, state: ArmState) -> None:
         if not all(np.all(np.isfinite(v)) for v in state):
             raise SafetyStop("a measurement is NaN or infinite")
-        speed = float(np.abs(state.qd).max())
-        if speed >= self.config.max_joint_speed:
-            raise SafetyStop(
-                f"joint speed {speed:.2f} rad/s reached the limit {self.config.max_joint_speed:.2f}"
-            )
         if state.t < self.last_t:
             raise SafetyStop(
                 f"the arm's clock went back from {self.last_t:.3f} s to {state.t:.3f} s"
             )
-        if self.tool_force > self.config.max_tool_force:
+
+    def ends(self, state: ArmState) -> period.Ends:
+        """The trial's end tests (`period.ends`) at this reading, the tcp in place of the tip
+        (a robot measures no more) and the estimated hole in place of the true one, the period
+        counted on the arm's clock. SafetyStop unless the reading is finite and later than the
+        last, and the trial neither unstable (a joint as fast as `TrialConfig.max_joint_speed`,
+        twice the UR5e's 180 deg/s, where the real arm would protective-stop) nor stopped (a
+        sensed tool force beyond `TrialConfig.max_tool_force` at the last command, the UR5e's
+        protective stop): the engines end such trials as failures."""
+        if self.trial is None:
+            raise RuntimeError("SkillRuntime.ends before start")
+        self._check_reading(state)
+        cfg, b, n = self.config, _one, self.period_steps
+        step = round(self.elapsed(state) / (n * cfg.timestep))
+        self.trial = self.trial._replace(step=np.array([step], dtype=np.int64))
+        end = period.ends(cfg, self.consts, self.trial, b(state.tcp_pos), b(state.qd),
+                          period_steps=n)  # fmt: skip
+        if end.unstable[0]:
+            speed = float(np.abs(state.qd).max())
+            raise SafetyStop(
+                f"joint speed {speed:.2f} rad/s reached the limit {cfg.max_joint_speed:.2f}"
+            )
+        if self.trial.stop[0]:
             raise SafetyStop(
                 f"protective stop: sensed tool force {self.tool_force:.0f} N beyond the limit "
-                f"{self.config.max_tool_force:.0f} N"
+                f"{cfg.max_tool_force:.0f} N"
             )
         self.last_t = state.t
+        return end
 
-    def torque(self, state: ArmState) -> np.ndarray:
-        """(6,) joint torques for this reading (N m, clamped to the UR5e's limits)."""
-        self.check(state)
-        return self._command(state)
-
-    def _command(self, state: ArmState) -> np.ndarray:
-        """`torque` for a reading that has passed `check`."""
-        if self.skill is None:
-            raise RuntimeError("SkillRuntime.torque before start")
-        cfg, b = self.config, lambda a: a[None]  # one trial as a batch of one
-        reading = external_wrench(b(state.force), b(state.torque), self.tare)
-        # The filter and the damping are first-order lags with poles for one physics step
-        # (TrialConfig.timestep); a command every n steps holds its reading n steps: pole^n.
-        n = self.period_steps
-        self.filtered = sensor.filter_step(self.filtered, reading, self.alpha**n)
-        self.tool_force = float(np.linalg.norm(self.filtered[0, :3]))
-        self.peak_force = max(self.peak_force, self.tool_force)
-        wrench = wrench_to_goal(
-            self.filtered, b(state.ft_rot), b(state.ft_pos - state.tcp_pos), self.goal_rot
-        )
-        a = cfg.coupling_pole**n
-        self.coupled = a * self.coupled + (1.0 - a) * wrench
-        wrench = self.coupled
-        dt = cfg.timestep * self.period_steps  # the command's period
-        self.aligned = aligned_rotation(self.control.search, self.aligned, wrench,
-                                        b(state.tcp_pos), self.skill.goal_pos,
-                                        self.skill.goal_rot, dt)  # fmt: skip
-        self.spiral = spiral_state(self.control.search, self.spiral, wrench, b(state.tcp_pos),
-                                   self.skill.goal_pos, self.skill.goal_rot, dt)  # fmt: skip
-        meas = Measurement(
-            t=np.array([self.elapsed(state)]),
+    def command(self, state: ArmState) -> np.ndarray:
+        """(6,) joint torques (N m, clamped to the UR5e's limits) for a reading that has passed
+        `ends`: `period.advance` on a batch of one. SafetyStop on a non-finite torque."""
+        b = _one
+        meas = period.PeriodMeasurement(
+            qvel=b(state.qd),
             tcp_pos=b(state.tcp_pos),
             tcp_rot=b(state.tcp_rot),
+            tip_pos=b(state.tcp_pos),
+            ft=b(np.concatenate([state.force, state.torque])),
+            ft_rot=b(state.ft_rot),
+            ft_pos=b(state.ft_pos),
             jac=b(state.jac),
             jdot_qdot=(b(state.jac_dot) @ state.qd[None, :, None])[..., 0],
-            qvel=b(state.qd),
             mass=b(state.mass),
             bias=b(state.bias),
-            wrench=wrench,
-            aligned=self.aligned,
-            spiral=self.spiral,
         )
-        u = skill_torque(self.control, self.skill, self.basis, meas)[0]
+        self.trial, u, wrench = period.advance(self.config, self.control, self.basis,
+                                               self.consts, self.trial, meas, self.period_steps,
+                                               zero_nonfinite=False)  # fmt: skip
         if not np.all(np.isfinite(u)):
             raise SafetyStop("the controller returned a non-finite torque")
         self.wrench = wrench[0]
-        cfg = self.config
-        if cfg.end_settled:  # the engines' settle test, on what the arm measures
-            step = np.array([round(self.elapsed(state) / cfg.timestep)])
-            self.settle = settle_update(self.settle, step, b(state.qd), b(state.tcp_pos), wrench,
-                                        cfg, self.period_steps)  # fmt: skip
-        return u
+        return u[0]
+
+    def torque(self, state: ArmState) -> np.ndarray:
+        """(6,) joint torques for this reading: `ends`, then `command`."""
+        self.ends(state)
+        return self.command(state)
 
     @property
-    def settled(self) -> bool:
-        """The skill has settled (`TrialConfig.end_settled`): at rest or repeating the same
-        motion, it cannot insert any more; `run_skill` stops it."""
-        return bool(is_settled(self.settle, self.config)[0])
+    def tool_force(self) -> float:
+        """N: the tool force the last command sensed (the F/T pipeline's output)."""
+        if self.trial is None:
+            return 0.0
+        return float(np.linalg.norm(self.trial.sensor.filtered[0, :3]))
+
+    @property
+    def peak_force(self) -> float:
+        """N: the largest sensed tool force so far (TrialResult.peak_force)."""
+        return 0.0 if self.trial is None else float(self.trial.peak_force[0])
 
     def inserted(self, state: ArmState) -> bool:
-        """The tcp (nominal tip) is inside the estimated hole's footprint near the table."""
-        lateral = math.hypot(state.tcp_pos[0] - self.hole.x, state.tcp_pos[1] - self.hole.y)
-        return bool(state.tcp_pos[2] < self.config.success_height and lateral < self.hole.size)
+        """The trial's success test (`trial.is_success`) on the tcp (the nominal tip) against
+        the estimated hole: inside its footprint, near the table."""
+        inside = is_success(_one(state.tcp_pos), self.hole_origin, self.hole_axis,
+                            self.hole.size, self.config.success_height)  # fmt: skip
+        return bool(inside[0])
+
+
+def _one(a: np.ndarray) -> np.ndarray:
+    """`a` as a batch of one trial."""
+    return a[None]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -262,7 +257,7 @@ def run_skill(
 ) -> SkillRun:
     """Drive `arm` with `runtime` until `done(state)` (default: `runtime.inserted`) or the time
     limit (default: the runtime's `TrialConfig.time_limit_s`). A SafetyStop holds the arm, and so
-    does a skill that has settled (`SkillRuntime.settled`: stopped "settled", a failure)."""
+    does a skill that has settled (the period's `Ends.settled`: stopped "settled", a failure)."""
     limit = runtime.config.time_limit_s if time_limit_s is None else time_limit_s
     if not (math.isfinite(limit) and limit > 0):
         raise UsageError(f"the time limit must be a positive number of seconds, got {limit!r}")
@@ -276,17 +271,17 @@ def run_skill(
         runtime.start(state)
         while True:
             elapsed = runtime.elapsed(state)
-            runtime.check(state)
+            end = runtime.ends(state)
             if done(state):
                 success = True
                 break
             if elapsed >= limit - 1e-3 * arm.period:
                 break
-            if runtime.settled:
+            if end.settled[0]:
                 arm.hold()
                 stopped = "settled"
                 break
-            u = runtime._command(state)  # checked above
+            u = runtime.command(state)
             arm.send(u)
             for key, value in zip(log, (elapsed, state.tcp_pos, runtime.wrench, u), strict=True):
                 log[key].append(value)

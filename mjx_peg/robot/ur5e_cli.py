@@ -11,7 +11,8 @@ connect (ur_rtde), check the robot (`UR5eArm.check_ready`), move to the start (m
 reaches `--time-limit`. `--shadow` reads the arm and computes every torque, and sends nothing:
 the arm stays where it is (or where a person guides it in freedrive). `--rehearse` runs the same
 path against the simulated UR5e behind ur_rtde's interface (`sim_ur5e.py`), the board exactly at
-the hole. Writes `ur5e_run.csv` (a row per command period) and `ur5e_run.png` under --out.
+the hole. Writes `ur5e_run.csv` (a row per command period), `ur5e_run.png` and `ur5e_skill.json`
+(the skill it ran, every constant) under --out.
 """
 
 from __future__ import annotations
@@ -24,14 +25,14 @@ import numpy as np
 
 from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
-from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import load_policy, policy_skill
+from mjx_peg.errors import UsageError, shown_path
+from mjx_peg.outdir import write_json
+from mjx_peg.policy.export import choose_skill, load_policy
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.robot.runtime import HoleEstimate, SkillRun, SkillRuntime, controller_vector, run_skill
 from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
 from mjx_peg.skill.control_step import start_state
-from mjx_peg.skill.search import skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, feasible_configuration, goal_pose
 
@@ -39,6 +40,7 @@ START_HEIGHT = 0.06  # m: the tip's start above the board top (the sampler's 40-
 MOVE_SPEED, MOVE_ACCEL = 0.25, 0.5  # rad/s, rad/s^2: moveJ to the start
 WATCHDOG_HZ = 100.0  # ur_rtde's watchdog: the script stops if no command comes for 10 ms
 RUN_CSV, RUN_PNG = "ur5e_run.csv", "ur5e_run.png"
+RUN_SKILL = "ur5e_skill.json"  # the skill the run ran: {"name", "constants"}
 
 
 def parse_hole(text: str) -> tuple[float, float, float]:
@@ -195,7 +197,7 @@ def write_log(path: Path, arm: UR5eArm, run: SkillRun, runtime: SkillRuntime) ->
             w.writerow(header)
             w.writerows([f"{v:.6g}" for v in row] for row in table)
 
-    cli.write_atomic(path, write)
+    outdir.write_atomic(path, write)
     return n
 
 
@@ -231,7 +233,7 @@ def plot_log(path: Path, arm: UR5eArm, run: SkillRun, hole: HoleEstimate) -> Non
         f" at {run.time_s:.2f} s"
     )
     fig.tight_layout()
-    cli.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+    outdir.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
     plt.close(fig)
 
 
@@ -261,25 +263,25 @@ def run(args, prog: str) -> int:
     policy = args.policy
     if policy != "baseline":
         policy = load_policy(policy)
-        check_trained_for(policy, args.shape, args.size, f"--policy {cli.shown_path(given)}")
+        check_trained_for(policy, args.shape, args.size, f"--policy {shown_path(given)}")
     vector = controller_vector(policy, hole)
-    search = skill_config(args.skill or policy_skill(policy))
-    config = TrialConfig(time_limit_s=args.time_limit, search=search)
+    skill = choose_skill(args.skill, policy)
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     p = plan(hole, vector, config)
     if args.dry_run:
         print_plan(p, hole)
         print(f"{prog}: dry run: nothing was connected or moved")
         return 0
-    cli.check_apart(args.out, {"--policy": args.policy})
+    outdir.check_apart(args.out, {"--policy": args.policy})
     with outdir.exclusive(args.out):
-        return _on_the_arm(args, prog, hole, vector, config, p)
+        return _on_the_arm(args, prog, hole, vector, skill, config, p)
 
 
-def _on_the_arm(args, prog: str, hole: HoleEstimate, vector, config: TrialConfig, p: dict) -> int:
+def _on_the_arm(args, prog, hole: HoleEstimate, vector, skill, config: TrialConfig, p) -> int:
     """Connect, check, move and run the skill; the log into --out (held)."""
-    paths = [args.out / RUN_CSV, args.out / RUN_PNG]
+    paths = [args.out / RUN_CSV, args.out / RUN_PNG, args.out / RUN_SKILL]
     if not args.force:  # an earlier run is kept: refused before the robot is touched
-        cli.refuse_or_move(paths, False, prog)
+        outdir.refuse_or_move(paths, False)
     if args.rehearse:
         robot = rehearsal_robot(hole, p["q_start"], args.seed)
         interfaces, clock, where = (
@@ -308,8 +310,10 @@ def _on_the_arm(args, prog: str, hole: HoleEstimate, vector, config: TrialConfig
         **({"clock": clock} if clock else {}),
     )
     arm.check_ready()
-    cli.refuse_or_move(paths, args.force, prog)  # the robot is ready: --out is made, then it moves
-    cli.prepare_dir(args.out)
+    # the robot is ready: --out is made, then it moves
+    outdir.refuse_or_move(paths, args.force, lambda text: cli.note(prog, text))
+    outdir.prepare_dir(args.out)
+    write_json(paths[2], skill.record())
     if not args.shadow:
         control.moveJ([float(v) for v in p["q_start"]], MOVE_SPEED, MOVE_ACCEL)
         control.zeroFtSensor()

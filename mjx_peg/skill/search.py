@@ -33,7 +33,7 @@ force: a face pressed on the board top by N at its centre of pressure r (goal fr
 the tcp) feels the moment m = r x (-N e_z) = N (-r_y, r_x, 0), so r = (m_y, -m_x) / N; the hole
 lies on the side of the face that does not touch, and the goal moves by -k_cop r. The bounded
 press and the stiffer tip lower the friction threshold; measured, both cost more than they free
-(docs/rim_escape.md), so `SKILLS["search"]` is the centring alone.
+(docs/rim_escape.md), so the `search` ablation (experiments/ablations.py) is the centring alone.
 
 The alignment is an integral term beside the rotational compliance (C[3,3], C[4,4], C[5,5]):
 the goal's rotation a follows the moment at the tcp while the peg is pressed, and keeps what it
@@ -52,7 +52,7 @@ trials, d_a = 10 mm lost 5 of the baseline's successes, 20 mm none). The yaw (a_
 press: a polygon enters only once it is turned. Measured (docs/tilted_hole.md): on 60 trials
 at +-2 mm / +-12 deg, 58.3 % -> 83.3 % (the tilt alone 71.7 %), the median time 7.6 s -> 3.8 s,
 no peg left wedged of 14; on the 500 trials at +-4 mm / +-6 deg, 83.0 % -> 84.6 % and the time
-p90 18.4 s -> 8.3 s. `SKILLS["align"]` is the centring and the alignment.
+p90 18.4 s -> 8.3 s. The `align` ablation is the centring and the alignment.
 
 The spiral frees the pegs that the centring cannot: beyond d* = sqrt(R_h^2 - R_p^2) (6.2 mm at
 50 mm) a peg rests on a chord of its face on the hole's side, and the centre of pressure no
@@ -123,7 +123,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
+from typing import NamedTuple
 
+from mjx_peg import file_versions
 from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 from mjx_peg.world.constants import GOAL_HEIGHT, HOLE_DEPTH
@@ -224,11 +227,12 @@ class SkillConfig:
         return dataclasses.replace(self, **changes)
 
 
-# The named skills of the CLIs: the paper's literal one, and ours with the contact search.
+# The two skills a user chooses between (every CLI's --skill): the paper's compliant DMP as
+# written, and ours, the shipped one: the contact search with the alignment and the spiral. Its
+# ancestors live on as named ablations (experiments/ablations.py); files that name them read
+# their constants from file_versions.FORMER_SKILLS.
 SKILLS = {
     "paper": SkillConfig(),
-    "search": SkillConfig(centre_gain=1.0),
-    "align": SkillConfig(centre_gain=1.0, align_rate=1.0),
     "spiral": SkillConfig(
         centre_gain=1.0,
         align_rate=1.0,
@@ -244,15 +248,23 @@ SKILLS = {
 
 SKILL_DESCRIPTIONS = {
     "paper": "the paper's compliant DMP as written",
-    "search": "with the contact search: the goal moved away from the centre of pressure of a peg "
-    "resting on the board top, skill/search.py",
-    "align": "the contact search, and the goal's rotation following the moment (an integral "
-    "rotational compliance; its tilt once the peg is in the hole), skill/search.py",
-    "spiral": "the alignment, and a spiral of the goal about the estimated hole while the peg "
-    "rests on the board top, its press lighter and its tip stiffer; a stiffer press deep in the "
-    "hole; a 1.3 s movement that cruises half of it; a search that has not found the hole in "
-    "45 s withdrawn, skill/search.py",
+    "spiral": "ours, the shipped skill: the paper's with a contact search (skill/search.py): the "
+    "goal moved away from the centre of pressure of a peg resting on the board top and turned "
+    "with the moment it feels, a spiral about the estimated hole while the peg rests there (its "
+    "press lighter, its tip stiffer), a stiffer press deep in the hole, a 1.3 s movement that "
+    "cruises half of it, and a search that has not found the hole in 45 s withdrawn",
 }
+
+
+class NamedSkill(NamedTuple):
+    """A skill as a run records it: its name and its constants."""
+
+    name: str
+    config: SkillConfig
+
+    def record(self) -> dict:
+        """{"name", "constants"}: what a manifest records (`constants_record`)."""
+        return {"name": self.name, "constants": constants_record(self.config)}
 
 
 def skill_config(name: str) -> SkillConfig:
@@ -261,6 +273,48 @@ def skill_config(name: str) -> SkillConfig:
         shown = repr(name)[:40]
         raise UsageError(f"unknown skill {shown}: choose one of {', '.join(SKILLS)}")
     return SKILLS[name]
+
+
+def skill_description(name: str) -> str:
+    """What the skill `name` is, in one phrase (`SKILL_DESCRIPTIONS`)."""
+    if name in SKILL_DESCRIPTIONS:
+        return SKILL_DESCRIPTIONS[name]
+    return "a skill of earlier versions, its constants recorded (file_versions.FORMER_SKILLS)"
+
+
+def constants_record(config: SkillConfig) -> dict:
+    """Every constant of `config` by its field's name, as JSON records it: an infinite one (an
+    unbounded `search_budget`) as null, JSON having no infinity."""
+    values = ((f.name, getattr(config, f.name)) for f in dataclasses.fields(config))
+    return {name: None if value == math.inf else value for name, value in values}
+
+
+def constants_from_record(record) -> SkillConfig:
+    """The SkillConfig of a record (`constants_record`); a field it lacks keeps its default,
+    off (it predates the field). UsageError naming the field on anything else."""
+    if not isinstance(record, Mapping):
+        raise UsageError(f"skill constants must be an object of SkillConfig fields, got {record!r}")
+    names = {f.name for f in dataclasses.fields(SkillConfig)}
+    for name, value in record.items():
+        if name not in names:
+            raise UsageError(f"skill constants: {name!r} is not a SkillConfig field")
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise UsageError(f"skill constants: {name} must be a number, got {value!r}")
+    return SkillConfig(**{k: math.inf if v is None else float(v) for k, v in record.items()})
+
+
+def named_skill(name: str, constants=None) -> NamedSkill:
+    """The skill `name` with its constants: `constants` (a SkillConfig or its record) where
+    given, else the named skill's: one of `SKILLS` as it is today, or one that files of earlier
+    versions name, as it was (`file_versions.FORMER_SKILLS`). UsageError on an unknown name or
+    a bad constant."""
+    if name not in SKILLS and name not in file_versions.FORMER_SKILLS:
+        raise UsageError(f"unknown skill {name!r}: choose one of {', '.join(SKILLS)}")
+    if constants is None:
+        constants = SKILLS.get(name) or SkillConfig(**file_versions.FORMER_SKILLS[name])
+    elif not isinstance(constants, SkillConfig):
+        constants = constants_from_record(constants)
+    return NamedSkill(name, constants)
 
 
 def resting_gate(config: SkillConfig, wrench):
@@ -430,13 +484,18 @@ def bounded_press(config: SkillConfig, ydd):
 __all__ = [
     "SKILLS",
     "SKILL_DESCRIPTIONS",
+    "NamedSkill",
     "SkillConfig",
     "aligned_rotation",
     "bounded_press",
     "centre_of_pressure",
+    "constants_from_record",
+    "constants_record",
+    "named_skill",
     "resting_gate",
     "searched_offset",
     "skill_config",
+    "skill_description",
     "spiral_path",
     "spiral_state",
 ]

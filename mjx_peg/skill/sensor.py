@@ -13,8 +13,10 @@ own frame, tared: the external wrench on the peg, CONVENTIONS.md):
 
 (`hardware_step` is the sensor itself: sampling, noise, bias and delay; `filter_step` is the
 software filter every deployment runs on the reading.) The engines run both stages; the simulated
-arm (`robot/sim_arm.py`) runs the hardware stage on MuJoCo's reading and the robot runtime runs
-the filter on whatever arm it drives, so a run on the simulated arm sees the engine's readings.
+arm (`robot/sim_arm.py`) runs the hardware stage on MuJoCo's reading, as a real arm's own sensor
+path does, and the robot runtime runs the pipeline with `filter_params`: a sensor of no noise,
+bias, delay or hold, whose filter is the software one, so a run on the simulated arm sees the
+engine's readings.
 
 UR5e built-in F/T sensor (the defaults of `SensorConfig`):
 - Datasheet (Universal Robots, UR5e technical specifications, "Force/torque sensor, tool
@@ -200,6 +202,20 @@ def make_params(
     return SensorParams(seed, hold, delay, alpha, noise, bias)
 
 
+def filter_params(config: SensorConfig, timestep: float, seed, period_steps: int = 1,
+                  dtype=None) -> SensorParams:  # fmt: skip
+    """SensorParams of a reading that arrives as an arm's own sensor path delivers it (sampled,
+    tared, with whatever noise, bias and latency it has): no noise, bias or delay, a sample every
+    period; only the software filter at `config.cutoff_hz`, its pole for a control period of
+    `period_steps` physics steps of `timestep`, a^n (the reading held over n steps). seed:
+    (...,) uint32, the trials' shape and array namespace (nothing is drawn)."""
+    quiet = config.replace(force_noise=0.0, torque_noise=0.0, force_bias=0.0, torque_bias=0.0,
+                           delay_steps=0)  # fmt: skip
+    params = make_params(quiet, timestep, seed, dtype=dtype)
+    xp = namespace_of(params.alpha)
+    return params._replace(hold=xp.ones_like(params.hold), alpha=params.alpha**period_steps)
+
+
 def initial_state(params: SensorParams, history_length: int, dtype=None) -> SensorState:
     """The state at the tare: every past sample and the filter read zero."""
     xp = namespace_of(params.noise)
@@ -250,6 +266,7 @@ __all__ = [
     "SensorState",
     "counter_normal",
     "counter_uniform",
+    "filter_params",
     "filter_step",
     "hardware_step",
     "initial_state",

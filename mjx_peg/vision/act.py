@@ -32,8 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli
+from mjx_peg import outdir
 from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.evaluation.stats import mcnemar_p
 from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import Renderer, make_label
@@ -144,16 +145,6 @@ def controller_vectors(policy: str, specs: TrialSpec, shapes: list[str], sizes: 
     return load_policy(policy).vectors_for(obs)
 
 
-def mcnemar_p(a: np.ndarray, b: np.ndarray) -> float:
-    """Two-sided exact McNemar p-value of paired successes a, b (bool arrays)."""
-    from scipy.stats import binomtest
-
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    if only_a + only_b == 0:
-        return 1.0
-    return float(binomtest(only_a, only_a + only_b, 0.5).pvalue)
-
-
 def run_act(
     localizer: Localizer,
     policy: str,
@@ -168,22 +159,23 @@ def run_act(
     skill: str | None = None,
 ) -> dict:
     """Run both conditions for every shape; write trials.csv, summary.json, summary.md. `skill`:
-    a named skill (skill.search.SKILLS); None: the one the policy was trained with."""
+    a named skill (skill.search.SKILLS); None: the policy's (`policy.export.policy_skill`).
+    summary.json records the skill's name and every constant."""
     from tqdm import tqdm
 
     from mjx_peg.engines import run_trials
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    from mjx_peg.policy.export import policy_skill
-    from mjx_peg.skill.search import skill_config
+    from mjx_peg.policy.export import choose_skill
 
-    skill = skill or policy_skill(policy)
-    config = TrialConfig(time_limit_s=time_limit_s, search=skill_config(skill))
+    chosen = choose_skill(skill, policy)
+    config = TrialConfig(time_limit_s=time_limit_s, search=chosen.config)
     rows = []
     summary = {
         "policy": policy,
-        "skill": skill,
+        "skill": chosen.name,
+        "skill_constants": chosen.record()["constants"],
         "trials_per_shape": trials,
         "size_mm": size * 1000,
         "seed": seed,
@@ -297,9 +289,9 @@ def run_act(
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-    cli.write_atomic(out / "trials.csv", table.getvalue())
-    cli.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    cli.write_atomic(out / "summary.md", summary_markdown(summary))
+    outdir.write_atomic(out / "trials.csv", table.getvalue())
+    outdir.write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    outdir.write_atomic(out / "summary.md", summary_markdown(summary))
     return summary
 
 

@@ -7,7 +7,7 @@
     mjx-peg-vision evaluate --model runs/vision/model --data runs/vision/data/test \
         --out runs/vision/eval/test
     mjx-peg-vision localize IMAGE.png --camera CALIB.json [--model runs/vision/model]
-    mjx-peg-vision act --policy paper --skill spiral --out runs/vision/act
+    mjx-peg-vision act --policy paper --out runs/vision/act
     mjx-peg-vision figures --model runs/vision/model --data runs/vision/data/test
 
 `evaluate`, `localize`, `act` and `figures` read the shipped localizer (`policies/localizer`)
@@ -27,7 +27,7 @@ from pathlib import Path
 from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import SHIPPED_DIR, resolve_policy
-from mjx_peg.skill.search import SKILLS
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 
 PROG = "mjx-peg-vision"
 TRAIN_OUT = Path("runs/vision/model")  # where `train` writes a new localizer
@@ -35,6 +35,11 @@ SHIPPED_MODEL = SHIPPED_DIR / "localizer"  # the localizer the other commands re
 COUNT = cli.integer(1, 1_000_000)  # images in a split
 PIXELS = cli.integer(64, 2048)  # image width, height
 STEPS = cli.integer(1, 1_000_000)  # training steps of one network
+
+
+def _note(text: str) -> None:
+    """A one-line notice of this command on stderr."""
+    cli.note(PROG, text)
 
 
 def _csv(text: str) -> tuple[str, ...]:
@@ -107,8 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--trials", type=cli.TRIALS, default=200, help="per shape, default 200")
     a.add_argument("--time-limit", type=cli.TIME_LIMIT_S, default=60.0, help="per trial")
     a.add_argument("--seed", type=cli.SEED, default=0)
-    a.add_argument("--workers", type=cli.WORKERS, help="engine lanes (default: every core)")
-    cli.add_skill_option(a, tuple(SKILLS), None, "the policy's, paper for the baseline")
+    a.add_argument("--threads", type=cli.THREADS, help="engine lanes (default: every core)")
+    cli.add_skill_option(a, SKILL_DESCRIPTIONS)
     _force(a, "trials.csv, summary.md and summary.json")
 
     f = sub.add_parser("figures", help="README pictures: predictions drawn, randomization gallery")
@@ -152,9 +157,8 @@ def _render(args) -> str:
             )
     for flag, values in (("--sizes", sizes), ("--shapes", shapes)):
         if not values or len(set(values)) != len(values):
-            raise UsageError(
-                f"{flag} must name distinct values, got {getattr(args, flag[2:])[:40]!r}"
-            )
+            given = getattr(args, flag[2:])[:40]
+            raise UsageError(f"{flag} must name distinct values, got {given!r}")
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
@@ -165,7 +169,7 @@ def _render(args) -> str:
         sizes_mm=tuple(sizes),
     )
     with outdir.exclusive(args.out):
-        prepare_split(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+        prepare_split(args.out, config, force=args.force, note=_note)
         mujoco_log.send_to(args.out)
         _warn_gl()
         n = render_split(args.out, config, progress=not args.no_progress)
@@ -178,7 +182,7 @@ def _train(args) -> str:
     from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
-    cli.check_apart(args.out, {"--data": args.data, "--val": args.val})
+    outdir.check_apart(args.out, {"--data": args.data, "--val": args.val})
     split_items(args.data)  # a split with readable labels, before any work
     if args.val is not None:
         split_items(args.val)
@@ -187,7 +191,7 @@ def _train(args) -> str:
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
     with outdir.exclusive(args.out):
-        prepare_out(args.out, config, force=args.force, note=lambda text: cli.note(PROG, text))
+        prepare_out(args.out, config, force=args.force, note=_note)
         loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"
@@ -203,12 +207,12 @@ def _evaluate(args) -> str:
     from mjx_peg.vision.localizer import Localizer
     from mjx_peg.vision.metrics import REPORT_FILES, evaluate_to
 
-    cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
+    outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_items(args.data)
     with outdir.exclusive(args.out):
-        cli.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, PROG)
-        cli.prepare_dir(args.out)
+        outdir.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, _note)
+        outdir.prepare_dir(args.out)
         report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
     o = report["overall"]
     yaw = "-" if o["yaw_p99_deg"] is None else f"{o['yaw_p99_deg']:.2f}"
@@ -247,7 +251,7 @@ def _act(args) -> str:
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     args.policy = resolve_policy(args.policy)
-    cli.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
+    outdir.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
     from mjx_peg.vision.localizer import Localizer
     from mjx_peg.world import mujoco_log
@@ -258,11 +262,11 @@ def _act(args) -> str:
 
         load_policy(args.policy)  # a readable policy, before --out is touched
     with outdir.exclusive(args.out):
-        cli.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, PROG)
-        cli.prepare_dir(args.out)
+        outdir.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, _note)
+        outdir.prepare_dir(args.out)
         mujoco_log.send_to(args.out)
         _warn_gl()
-        options = {"workers": args.workers} if args.workers else {}
+        options = {"threads": args.threads} if args.threads else {}
         s = run_act(
             loc,
             args.policy,
@@ -289,12 +293,12 @@ def _figures(args) -> str:
     from mjx_peg.vision.figures import FIGURES, write_figures
     from mjx_peg.vision.localizer import Localizer
 
-    cli.check_apart(args.out, {"--model": args.model, "--data": args.data})
+    outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
     split_items(args.data)
     with outdir.exclusive(args.out):
-        cli.refuse_or_move([args.out / name for name in FIGURES], args.force, PROG)
-        cli.prepare_dir(args.out)
+        outdir.refuse_or_move([args.out / name for name in FIGURES], args.force, _note)
+        outdir.prepare_dir(args.out)
         _warn_gl()
         paths = write_figures(loc, args.data, args.out)
     return "wrote " + ", ".join(str(p) for p in paths)

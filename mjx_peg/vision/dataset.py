@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import cli, inputs
+from mjx_peg import inputs, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import OutDir, write_json
 from mjx_peg.vision.camera import CameraCalibration
@@ -137,7 +137,7 @@ def _png_write(path: Path, rgb: np.ndarray) -> None:
     from PIL import Image
 
     image = Image.fromarray(rgb)
-    cli.write_atomic(path, lambda tmp: image.save(tmp, format="PNG", compress_level=1))
+    outdir.write_atomic(path, lambda tmp: image.save(tmp, format="PNG", compress_level=1))
 
 
 def read_png(path: str | os.PathLike) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
 from mjx_peg.vision.localizer import Localizer
-from mjx_peg.world import constants, scene
+from mjx_peg.world import constants, mjcf
 
 FIGURES = ("predictions.png", "gallery.png")
 
@@ -31,7 +31,7 @@ def _save(fig, path: Path, dpi: int) -> Path:
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    from mjx_peg import cli
+    from mjx_peg import outdir
 
     def write(tmp: Path) -> None:
         fig.savefig(tmp, dpi=dpi, format="png")
@@ -40,7 +40,7 @@ def _save(fig, path: Path, dpi: int) -> Path:
         paletted.save(tmp, format="PNG", optimize=True)
 
     try:
-        return cli.write_atomic(path, write)
+        return outdir.write_atomic(path, write)
     finally:
         plt.close(fig)
 
@@ -48,8 +48,8 @@ def _save(fig, path: Path, dpi: int) -> Path:
 def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.ndarray:
     """(n + 1, 3) closed outline of the hole's rim at the board top, world frame."""
     n = constants.HOLE_SIDES[shape]
-    r = scene.hole_inradius(shape, size) / math.cos(math.pi / n)  # circumradius
-    a = scene.hole_normal_angles(shape) + math.pi / n + yaw
+    r = mjcf.hole_inradius(shape, size) / math.cos(math.pi / n)  # circumradius
+    a = mjcf.hole_normal_angles(shape) + math.pi / n + yaw
     a = np.append(a, a[0])
     return np.stack(
         [x + r * np.cos(a), y + r * np.sin(a), np.full(a.shape, constants.HOLE_DEPTH)], axis=-1

@@ -179,7 +179,7 @@ def write_report(rows: list[dict], out_dir, title: str) -> dict:
     """errors.csv, metrics.json and summary.md in out_dir (each written atomically)."""
     import io
 
-    from mjx_peg import cli
+    from mjx_peg import outdir
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -187,10 +187,10 @@ def write_report(rows: list[dict], out_dir, title: str) -> dict:
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-    cli.write_atomic(out / "errors.csv", table.getvalue())
+    outdir.write_atomic(out / "errors.csv", table.getvalue())
     report = summarize(rows)
-    cli.write_atomic(out / "metrics.json", json.dumps(report, indent=2) + "\n")
-    cli.write_atomic(out / "summary.md", summary_markdown(report, title))
+    outdir.write_atomic(out / "metrics.json", json.dumps(report, indent=2) + "\n")
+    outdir.write_atomic(out / "summary.md", summary_markdown(report, title))
     return report
 
 

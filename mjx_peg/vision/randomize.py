@@ -1,6 +1,6 @@
 """Domain randomization for the bird's-eye camera: what a real camera and workshop would vary.
 
-The scene is the task's own (`scene.build_mjcf`: UR5e, table, board with its box-built hole, peg)
+The scene is the task's own (`mjcf.build_mjcf`: UR5e, table, board with its box-built hole, peg)
 with extras that only the camera sees: table and board materials with textures, a second
 (shadow-casting) light, and distractor bodies (no contacts). Per image, `sample_view` draws a
 view (a plain dict, stored in the image's JSON label) and `apply_view` writes it into the model.
@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 
 from mjx_peg.vision.camera import CameraCalibration  # noqa: E402
 from mjx_peg.vision.forward import SIZES_MM  # noqa: E402
-from mjx_peg.world import constants, scene  # noqa: E402
+from mjx_peg.world import constants, mjcf, scene  # noqa: E402
 from mjx_peg.world.constants import SHAPES  # noqa: E402
 from mjx_peg.world.task import TaskConfig  # noqa: E402
 
@@ -67,17 +67,13 @@ CAMERA_OFF_M, CAMERA_OFF_DEG = 0.010, 1.0  # the out-of-range `camera-off` condi
 DARK_FACTOR = 0.3  # the `dark` condition's light scale
 
 
-def _sub(parent: ET.Element, tag: str, **attrs) -> ET.Element:
-    return ET.SubElement(parent, tag, {k: str(v) for k, v in attrs.items()})
-
-
 def build_vision_mjcf(shape: str, size: float) -> str:
-    """The task scene (`scene.build_mjcf`) plus camera-only extras: materials, a key light and
+    """The task scene (`mjcf.build_mjcf`) plus camera-only extras: materials, a key light and
     distractor bodies (contype = conaffinity = 0, parked under the table)."""
-    root = ET.fromstring(scene.build_mjcf(shape, size))
+    root = ET.fromstring(mjcf.build_mjcf(shape, size))
     asset = root.find("asset")
     tex = dict(type="2d", width=512, height=512)
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_checker",
@@ -88,7 +84,7 @@ def build_vision_mjcf(shape: str, size: float) -> str:
         markrgb="0.5 0.5 0.5",
         **tex,
     )
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_speckle",
@@ -99,7 +95,7 @@ def build_vision_mjcf(shape: str, size: float) -> str:
         markrgb="0.55 0.55 0.55",
         **tex,
     )
-    _sub(
+    mjcf.element(
         asset,
         "texture",
         name="vt_gradient",
@@ -110,12 +106,12 @@ def build_vision_mjcf(shape: str, size: float) -> str:
     )
     for name in TABLE_TEXTURES:
         extra = {} if name == "plain" else {"texture": f"vt_{name}"}
-        _sub(asset, "material", name=f"vm_table_{name}", texrepeat="8 8", **extra)
+        mjcf.element(asset, "material", name=f"vm_table_{name}", texrepeat="8 8", **extra)
     for name in BOARD_TEXTURES:
         extra = {} if name == "plain" else {"texture": f"vt_{name}", "texuniform": "true"}
-        _sub(asset, "material", name=f"vm_board_{name}", texrepeat="6 6", **extra)
+        mjcf.element(asset, "material", name=f"vm_board_{name}", texrepeat="6 6", **extra)
     world = root.find("worldbody")
-    _sub(
+    mjcf.element(
         world,
         "light",
         name="key",
@@ -128,9 +124,9 @@ def build_vision_mjcf(shape: str, size: float) -> str:
     )
     for kind, count in N_DISTRACTORS.items():
         for k in range(count):
-            body = _sub(world, "body", name=f"vd_{kind}{k}", pos=f"0 0 {PARK_Z}")
+            body = mjcf.element(world, "body", name=f"vd_{kind}{k}", pos=f"0 0 {PARK_Z}")
             gtype = "box" if kind == "slab" else kind
-            _sub(
+            mjcf.element(
                 body,
                 "geom",
                 name=f"vd_{kind}{k}",
@@ -264,7 +260,7 @@ def sample_view(
     distractors = []
     kinds = [(kind, k) for kind, n in N_DISTRACTORS.items() for k in range(n)]
     count = int(rng.integers(0, 9))
-    keep_out = scene.board_half_width(board["shape"], board["size"]) * math.sqrt(2.0) + 0.01
+    keep_out = mjcf.board_half_width(board["shape"], board["size"]) * math.sqrt(2.0) + 0.01
     for i in rng.permutation(len(kinds))[:count]:
         kind, k = kinds[i]
         if kind == "slab":

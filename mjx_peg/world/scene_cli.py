@@ -49,7 +49,9 @@ def main(argv=None) -> int:
     import mujoco  # after mjx_peg (world.gl), which chooses MuJoCo's GL back-end
 
     from mjx_peg.world import mujoco_log, render
-    from mjx_peg.world.scene import build_mjcf, demo_pose, load_model
+    from mjx_peg.world.mjcf import build_mjcf
+    from mjx_peg.world.pose_solver import demo_pose
+    from mjx_peg.world.scene import load_model
 
     mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
     size = args.size_mm / 1000.0
@@ -58,20 +60,20 @@ def main(argv=None) -> int:
     # Everything is checked and made before --out is touched; nothing replaced without --force.
     with outdir.exclusive(args.out):
         if args.out.is_dir() and not args.force:
-            cli.refuse_or_move([xml_path, png_path], False, PROG)
+            outdir.refuse_or_move([xml_path, png_path], False)
         xml = build_mjcf(args.shape, size)
         model = load_model(args.shape, size)
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
             names = ", ".join(model.camera(i).name for i in range(model.ncam))
             raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")
         render.check_backend()
-        cli.prepare_dir(args.out)
-        cli.refuse_or_move([xml_path, png_path], args.force, PROG)
+        outdir.prepare_dir(args.out)
+        outdir.refuse_or_move([xml_path, png_path], args.force, lambda text: cli.note(PROG, text))
         if gl.fallback_note():
             cli.note(PROG, f"warning: {gl.fallback_note()}")
         rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-        cli.write_atomic(xml_path, xml)
-        cli.write_atomic(png_path, lambda path: render.save_png(path, rgb))
+        outdir.write_atomic(xml_path, xml)
+        outdir.write_atomic(png_path, lambda path: render.save_png(path, rgb))
     print(xml_path)
     print(png_path)
     return 0

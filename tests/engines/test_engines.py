@@ -462,14 +462,14 @@ def test_worker_processes_give_the_in_process_results():
     specs = sample_trials(task, 3, 12)
     params = as_controller_params(baseline_params(), len(specs))
     config = TrialConfig(time_limit_s=1.0)
-    here = mujoco_engine.run_trials(specs, params, config, threads=1)
+    here = mujoco_engine.run_on_cpu(specs, params, config, threads=1)
     counts = []
-    there = mujoco_engine.run_trials(specs, params, config, processes=2, progress=counts.append)
+    there = mujoco_engine.run_on_cpu(specs, params, config, processes=2, progress=counts.append)
     for name, value in here.to_arrays().items():
         np.testing.assert_array_equal(getattr(there, name), value, err_msg=name)
     assert sum(counts) == len(specs)
     with pytest.raises(ValueError, match="slots_per_thread must be a positive integer"):
-        mujoco_engine.run_trials(specs, params, config, processes=2, slots_per_thread=0)
+        mujoco_engine.run_on_cpu(specs, params, config, processes=2, slots_per_thread=0)
 
 
 def test_a_dead_worker_process_is_one_clear_error():
@@ -494,7 +494,7 @@ def test_a_dead_worker_process_is_one_clear_error():
     threading.Thread(target=kill_a_worker, daemon=True).start()
     start = time.monotonic()
     with pytest.raises(RuntimeError, match="worker process of the CPU engine died"):
-        mujoco_engine.run_trials(specs, params, TrialConfig(time_limit_s=600.0), processes=2)
+        mujoco_engine.run_on_cpu(specs, params, TrialConfig(time_limit_s=600.0), processes=2)
     assert time.monotonic() - start < 60.0
 
 

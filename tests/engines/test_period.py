@@ -39,7 +39,7 @@ def _capture(steps: set[int], config: TrialConfig):
                 raise _Captured
 
     with pytest.raises(_Captured):
-        cpu_engine.run_trials(specs, params, config, threads=1, observer=observe)
+        cpu_engine.run_on_cpu(specs, params, config, threads=1, observer=observe)
     return got
 
 

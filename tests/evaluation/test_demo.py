@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mjx_peg.evaluation import demo_cli, eval_cli
-from mjx_peg.evaluation import grid as evaluation
+from mjx_peg.evaluation import eval_dir as evaluation
 
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "3",

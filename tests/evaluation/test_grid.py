@@ -9,9 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjx_peg.evaluation import eval_cli
-from mjx_peg.evaluation import grid as evaluation
+from mjx_peg import cli
+from mjx_peg.evaluation import config as eval_config
+from mjx_peg.evaluation import eval_cli, eval_dir, grid_table, runner, summary
 from mjx_peg.evaluation import stats as es
+from mjx_peg.evaluation.paper_tables import PAPER, paper_order_conclusion
 from mjx_peg.evaluation.plots import (
     grid_matrix,
     paper_bars,
@@ -39,7 +41,7 @@ QUARTER_TIME = {
 }
 
 
-def synthetic_grid() -> es.GridTable:
+def synthetic_grid() -> grid_table.GridTable:
     linear, angular, success, times = [], [], [], []
     where = {"Q1": (0, 0), "Q2": (0, 2), "Q3": (2, 0), "Q4": (2, 2)}  # (linear, angular) offset
     for q, (li, ai) in where.items():
@@ -50,7 +52,7 @@ def synthetic_grid() -> es.GridTable:
             times.append(QUARTER_TIME[q][k])
     trials = np.full(16, 100)
     times = np.array(times, dtype=float)
-    return es.GridTable(
+    return grid_table.GridTable(
         linear_mm=np.array(linear),
         angular_deg=np.array(angular),
         trials=trials,
@@ -68,7 +70,7 @@ def test_quarters_split_each_axis_at_its_middle():
             np.sort(grid.success_pct[grid.quarter == q]), np.sort(QUARTER_SUCCESS[q])
         )
     # The paper grid: 25 linear ranges (12 small), 14 angular (7 small, up to 6 deg).
-    lin, ang, trials = evaluation.PRESETS["paper"]
+    lin, ang, trials = eval_config.PRESETS["paper"]
     assert (len(lin), len(ang), trials) == (25, 14, 200)
     assert lin[0] == pytest.approx(0.32) and lin[-1] == pytest.approx(8.0)
     assert ang[0] == pytest.approx(12 / 14) and ang[-1] == pytest.approx(12.0)
@@ -154,7 +156,7 @@ def test_quarter_order_and_comparison_tests():
     assert times[("Q1", "Q4")].better.p == pytest.approx(1 / 70)
     assert times[("Q1", "Q4")].conclusion() == ("Q1", "Q4")
     # Against another grid: every success rate 10 points lower -> "less" in every quarter.
-    worse = es.GridTable(**{**synthetic_grid().__dict__, "successes": grid.successes - 10})
+    worse = grid_table.GridTable(**{**synthetic_grid().__dict__, "successes": grid.successes - 10})
     result = es.compare_quarters(
         worse.success_pct, worse.quarter, grid.success_pct, grid.quarter, "less"
     )
@@ -169,7 +171,7 @@ def _tex_rows(text: str, label: str) -> list[list[float]]:
 
 
 def test_paper_numbers_match_tables_4_and_5():
-    nominal = es.PAPER["nominal"]
+    nominal = PAPER["nominal"]
     assert nominal.success.mean == (96.96, 94.22, 91.83, 87.83)
     assert nominal.time.mean == (1.9, 2.72, 4.34, 4.88)
     assert nominal.success_order == {
@@ -180,8 +182,8 @@ def test_paper_numbers_match_tables_4_and_5():
         ("Q2", "Q4"),
         ("Q3", "Q4"),
     }
-    assert es.paper_order_conclusion(es.PAPER["25mm"].success_order, "Q2", "Q3") == "Q3 better"
-    assert es.paper_order_conclusion(es.PAPER["25mm"].success_order, "Q1", "Q3") == "n.s."
+    assert paper_order_conclusion(PAPER["25mm"].success_order, "Q2", "Q3") == "Q3 better"
+    assert paper_order_conclusion(PAPER["25mm"].success_order, "Q1", "Q3") == "n.s."
     if not PAPER_TEX.is_file():
         pytest.skip(f"{PAPER_TEX} not available")
     text = PAPER_TEX.read_text()
@@ -196,7 +198,7 @@ def test_paper_numbers_match_tables_4_and_5():
             rows = _tex_rows(part, stat)
             assert len(rows) == len(conditions), (metric, stat, rows)
             for name, row in zip(conditions, rows, strict=True):
-                ours = getattr(getattr(es.PAPER[name], metric), stat)
+                ours = getattr(getattr(PAPER[name], metric), stat)
                 assert list(ours) == row, (name, metric, stat)
 
 
@@ -205,19 +207,19 @@ def test_grid_csv_round_trip_and_summary(tmp_path):
     path = tmp_path / "grid.csv"
     path.write_text(grid.csv_text())
     header = path.read_text().splitlines()[0].split(",")
-    assert header == list(es.GRID_COLUMNS)
-    back = es.GridTable.from_csv(path)
+    assert header == list(grid_table.GRID_COLUMNS)
+    back = grid_table.GridTable.from_csv(path)
     np.testing.assert_array_equal(back.successes, grid.successes)
     np.testing.assert_allclose(back.time_mean_s, grid.time_mean_s)
     np.testing.assert_array_equal(back.quarter, grid.quarter)
-    text = es.summary_markdown(grid, ["policy: test"], "nominal", back, "other", "less")
+    text = summary.summary_markdown(grid, ["policy: test"], "nominal", back, "other", "less")
     assert "97.00 (96.96)" in text  # Q1 mean success beside the paper's
     assert "89.25 (87.83)" in text
     assert "| Q1 vs Q4 | success | 15.0 | 0.0286 |" in text
     assert "## Against other" in text
     with pytest.raises(ValueError, match="not an evaluation grid.csv"):
         (tmp_path / "bad.csv").write_text("a,b\n1,2\n")
-        es.GridTable.from_csv(tmp_path / "bad.csv")
+        grid_table.GridTable.from_csv(tmp_path / "bad.csv")
 
 
 def test_heatmaps_are_written(tmp_path):
@@ -227,7 +229,7 @@ def test_heatmaps_are_written(tmp_path):
     assert matrix[0, 0] == 100.0  # bottom left = smallest errors = Q1
     t = grid.time_mean_s.copy()
     t[0] = np.nan  # a range without a success
-    grid = es.GridTable(**{**grid.__dict__, "time_mean_s": t})
+    grid = grid_table.GridTable(**{**grid.__dict__, "time_mean_s": t})
     for fn, name in ((success_heatmap, "s.png"), (time_heatmap, "t.png")):
         path = fn(grid, tmp_path / name)
         data = path.read_bytes()
@@ -235,36 +237,36 @@ def test_heatmaps_are_written(tmp_path):
     means, mins, maxes = quarter_stats_by_metric(grid)["success"]
     assert means[0] == pytest.approx(97.0) and mins[0] <= means[0] <= maxes[0]
     for condition in ("nominal", "triangle"):  # the triangle has no paper times: one panel
-        path = paper_bars(grid, es.PAPER[condition], tmp_path / f"{condition}.png", condition)
+        path = paper_bars(grid, PAPER[condition], tmp_path / f"{condition}.png", condition)
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
 
 
 def test_parse_ranges():
-    assert evaluation.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
-    assert evaluation.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
-    assert len(evaluation.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
+    assert cli.parse_ranges("0.5, 1,2", "--linear-mm") == (0.5, 1.0, 2.0)
+    assert cli.parse_ranges("1:3:1,4.5", "--linear-mm") == (1.0, 2.0, 3.0, 4.5)
+    assert len(cli.parse_ranges("0.32:8:0.32", "--linear-mm")) == 25
     for bad in ("", " , ", "3:1:1"):
         with pytest.raises(ValueError, match="--linear-mm is empty"):
-            evaluation.parse_ranges(bad, "--linear-mm")
+            cli.parse_ranges(bad, "--linear-mm")
     with pytest.raises(ValueError, match="cannot read"):
-        evaluation.parse_ranges("1,x", "--linear-mm")
+        cli.parse_ranges("1,x", "--linear-mm")
 
 
 def test_range_specs_depend_only_on_seed_and_index():
-    config = evaluation.EvalConfig(
+    config = eval_config.EvalConfig(
         "baseline", "custom", (1.0, 4.0), (2.0,), 5, ("circle", "square"), 50.0, 1.0, seed=3
     )
     assert config.shape_counts() == [3, 2]
-    a, b = evaluation.range_specs(config, 1), evaluation.range_specs(config, 1)
+    a, b = eval_config.range_specs(config, 1), eval_config.range_specs(config, 1)
     np.testing.assert_array_equal(a.loc_error, b.loc_error)
     assert list(a.shape_id) == [0, 0, 0, 1, 1]
     assert np.all(np.abs(a.loc_error[:, :2]) <= 0.004) and np.all(a.linear_range == 0.004)
-    other_seed = evaluation.range_specs(config.__class__(**{**config.__dict__, "seed": 4}), 1)
+    other_seed = eval_config.range_specs(config.__class__(**{**config.__dict__, "seed": 4}), 1)
     assert not np.allclose(a.board_pos, other_seed.board_pos)
     # Preset linear ranges scale with S (percent of S/2 in the paper) unless asked not to.
-    assert evaluation.grid_axes("paper-small", 25.0)[0][-1] == pytest.approx(4.0)
-    assert evaluation.grid_axes("paper-small", 25.0, linear_absolute=True)[0][-1] == 8.0
+    assert eval_config.grid_axes("paper-small", 25.0)[0][-1] == pytest.approx(4.0)
+    assert eval_config.grid_axes("paper-small", 25.0, linear_absolute=True)[0][-1] == 8.0
 
 
 TINY = [
@@ -286,7 +288,7 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
     rows = (full / "grid.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[1].startswith("0,0.5,1,Q1,4,")
 
-    real = evaluation.run_trials
+    real = runner.run_trials
     calls = []
 
     def interrupted(specs, *args, **kwargs):
@@ -295,14 +297,14 @@ def test_resume_after_interruption_gives_the_same_grid(tmp_path, monkeypatch, ca
             raise KeyboardInterrupt
         return real(specs, *args, **kwargs)
 
-    monkeypatch.setattr(evaluation, "run_trials", interrupted)
+    monkeypatch.setattr(runner, "run_trials", interrupted)
     assert eval_cli.main([*TINY, "--out", str(resumed)]) == 130
     assert "2 of 4 ranges saved" in capsys.readouterr().err
     assert not (resumed / "grid.csv").exists()
     assert len(list((resumed / "ranges").glob("*.npz"))) == 2
 
     calls.clear()
-    monkeypatch.setattr(evaluation, "run_trials", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(runner, "run_trials", lambda *a, **k: calls.append(1) or real(*a, **k))
     assert eval_cli.main([*TINY, "--out", str(resumed)]) == 0
     assert len(calls) == 2  # only the two unfinished ranges ran
     assert (resumed / "grid.csv").read_bytes() == (full / "grid.csv").read_bytes()
@@ -356,33 +358,78 @@ def test_learned_policy_directory(tmp_path):
     assert shipped["policy_dir"] == "paper"
 
 
-def test_the_skill_is_the_policys_unless_given_and_old_evaluations_read_as_paper(tmp_path):
+def test_the_skill_is_the_policys_unless_given_and_old_evaluations_read_as_they_ran(tmp_path):
+    """Without --skill an evaluation runs the skill the policy's manifest names (a manifest
+    without one: the skill it was trained with, here `search` of an earlier version, its
+    constants as they were); config.json records the name and every constant. Evaluations
+    written before constants were recorded read as the named skill's (`search`, `align`: as
+    they were; none named: the paper's) and resume."""
     import json
 
+    from mjx_peg.file_versions import FORMER_SKILLS
     from mjx_peg.policy.export import save_policy
+    from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig, constants_record
 
     run = tmp_path / "run"
     layers = [(np.zeros((8, 38)), np.zeros(38))]
     save_policy(run, layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8),
                 config={"skill": "search"})  # fmt: skip
+    manifest = json.loads((run / "manifest.json").read_text())
+    del manifest["skill"]  # written before manifests named the skill to run them with
+    (run / "manifest.json").write_text(json.dumps(manifest))
     argv = [
         "--policy", str(run), "--grid", "custom", "--linear-mm", "1", "--angular-deg", "1",
         "--trials", "1", "--time-limit", "0.2", "--shape", "square", "--engine", "mujoco",
         "--no-progress",
     ]  # fmt: skip
-    for extra, skill in (([], "search"), (["--skill", "paper"], "paper")):
+    search = SkillConfig(centre_gain=1.0)  # the centring alone
+    runs = (([], "search", search), (["--skill", "spiral"], "spiral", SKILLS["spiral"]))
+    for extra, skill, constants in runs:
         out = tmp_path / f"eval_{skill}"
         assert eval_cli.main([*argv, *extra, "--out", str(out)]) == 0
-        assert json.loads((out / "config.json").read_text())["config"]["skill"] == skill
+        recorded = json.loads((out / "config.json").read_text())["config"]
+        assert recorded["skill"] == skill
+        assert recorded["skill_constants"] == constants_record(constants)
+        assert len(recorded["skill_constants"]) == len(SkillConfig.__dataclass_fields__)
         assert f"skill: {skill} (" in (out / "summary.md").read_text()
-    config, _ = evaluation.read_eval_dir(tmp_path / "eval_search")
-    assert config.trial_config().search.centre_gain > 0
-    doc = json.loads((out / "config.json").read_text())
-    del doc["config"]["skill"]  # written before the contact search
-    (out / "config.json").write_text(json.dumps(doc))
-    config, _ = evaluation.read_eval_dir(out)
-    assert config.skill == "paper" and not config.trial_config().search.active
-    assert policy_skill("baseline") == "paper"
+    assert SkillConfig(**FORMER_SKILLS["search"]) == search
+    # An evaluation of an earlier version: no constants, or no skill at all.
+    for name, expected in (("align", search.replace(align_rate=1.0)), (None, SKILLS["paper"])):
+        doc = json.loads((out / "config.json").read_text())
+        doc["config"].pop("skill_constants", None)
+        if name is None:
+            del doc["config"]["skill"]  # written before the contact search
+        else:
+            doc["config"]["skill"] = name
+        (out / "config.json").write_text(json.dumps(doc))
+        config, _ = eval_dir.read_eval_dir(out)
+        assert config.skill == (name or "paper") and config.trial_config().search == expected
+        assert eval_dir.prepare_out_dir(out, config) == out  # resumed as it is
+    assert policy_skill("baseline") == NamedSkill("paper", SKILLS["paper"])
+
+
+def test_a_rerun_whose_skill_constants_changed_is_refused(tmp_path, monkeypatch, capsys):
+    """The skill's constants are part of the evaluation's config: after one constant of the
+    spiral changed, the same command refuses in one line naming --out and the constant, and
+    runs and writes nothing (no old ranges resumed beside new ones)."""
+    from mjx_peg.skill import search
+
+    out = tmp_path / "spiral"
+    argv = [*TINY, "--linear-mm", "1", "--angular-deg", "1", "--skill", "spiral", "--out",
+            str(out)]  # fmt: skip
+    assert eval_cli.main(argv) == 0
+    before = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    changed = search.SKILLS["spiral"].replace(spiral_speed=0.04)
+    monkeypatch.setitem(search.SKILLS, "spiral", changed)
+    calls = []
+    monkeypatch.setattr(runner, "run_trials", lambda *a, **k: calls.append(1))
+    capsys.readouterr()
+    assert eval_cli.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--out {out}" in err
+    assert "skill_constants.spiral_speed: 0.03 there, 0.04 now" in err
+    assert not calls
+    assert {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == before
 
 
 @pytest.mark.parametrize(
@@ -444,7 +491,7 @@ def test_evaluations_from_before_early_ending_read_as_full_time_limit(tmp_path, 
     doc = json.loads((out / "config.json").read_text())
     del doc["config"]["full_time_limit"]
     (out / "config.json").write_text(json.dumps(doc))
-    config, _ = evaluation.read_eval_dir(out)
+    config, _ = eval_dir.read_eval_dir(out)
     assert config.full_time_limit and not config.trial_config().end_settled
     assert eval_cli.main([*TINY, "--full-time-limit", "--out", str(out)]) == 0
     capsys.readouterr()
@@ -473,10 +520,10 @@ def test_evaluations_from_before_credible_contact_are_read_but_not_resumed(tmp_p
         with np.load(path) as npz:
             arrays = {k: npz[k] for k in npz.files if k not in ("chatter", "protective_stop")}
         np.savez(path, **arrays)
-    config, _ = evaluation.read_eval_dir(out)
+    config, _ = eval_dir.read_eval_dir(out)
     assert config.contact_model == 1
-    assert evaluation.grid_table(out, config).peak_force_median_n is not None
-    assert np.isnan(evaluation.grid_table(out, config).protective_stops).all()
+    assert eval_dir.grid_table(out, config).peak_force_median_n is not None
+    assert np.isnan(eval_dir.grid_table(out, config).protective_stops).all()
     capsys.readouterr()
     assert eval_cli.main([*TINY, "--out", str(out)]) == 2
     assert "contact_model: 1 there, 2 now" in capsys.readouterr().err

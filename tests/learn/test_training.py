@@ -23,6 +23,7 @@ from mjx_peg.learn.trainer import load_state, train
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.network import controller_vector
+from mjx_peg.skill.search import SKILLS, NamedSkill
 
 ROOT = Path(__file__).resolve().parents[2]
 # A tiny run: 3 iterations of 16 trials of at most 0.6 s.
@@ -82,7 +83,10 @@ def test_run_dir_holds_the_promised_files(tiny_run):
     for name in ("config.json", "metrics.csv", "trials.csv", "policy.npz", "manifest.json"):
         assert (out / name).is_file(), name
     assert (out / "training_curve.png").stat().st_size > 10_000
-    assert TrainConfig.from_json(json.loads((out / "config.json").read_text())) == TINY
+    config = json.loads((out / "config.json").read_text())
+    assert TrainConfig.from_json(config) == TINY
+    spiral = NamedSkill("spiral", SKILLS["spiral"])  # the run's skill, every constant recorded
+    assert config["skill_constants"] == spiral.record()["constants"]
     metrics = read_table(out / "metrics.csv")
     assert metrics["trials"] == [16.0, 32.0, 48.0]
     assert metrics["settled_rate"] == [0.0, 0.0, 0.0]  # 0.6 s trials cannot settle
@@ -90,8 +94,25 @@ def test_run_dir_holds_the_promised_files(tiny_run):
     assert read_table(out / "trials.csv")["trial"] == list(range(48))
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
     with np.load(out / "policy.npz", allow_pickle=False) as npz:
         assert all(npz[k].dtype == np.float32 for k in npz.files)
+
+
+def test_a_rerun_whose_skill_constants_changed_is_refused(tiny_run, monkeypatch, capsys):
+    """The skill's constants are part of a run's config: after one constant of the preset's
+    skill changed, the same command refuses in one line naming --out and the constant."""
+    from mjx_peg.learn import cli
+
+    out, _ = tiny_run
+    before = (out / "config.json").read_bytes()
+    changed = PRESETS["quick"].skill_constants.replace(spiral_speed=0.04)
+    monkeypatch.setitem(PRESETS, "quick", PRESETS["quick"].replace(skill_constants=changed))
+    assert cli.main([*TINY_ARGS, "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--out {out}" in err
+    assert "skill_constants.spiral_speed: 0.03 there, 0.04 now" in err
+    assert (out / "config.json").read_bytes() == before
 
 
 def test_full_time_limit_flag():

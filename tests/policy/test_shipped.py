@@ -10,6 +10,7 @@ import pytest
 from mjx_peg.errors import UsageError
 from mjx_peg.policy import shipped
 from mjx_peg.policy.export import load_policy, save_policy
+from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig, constants_record
 
 
 @pytest.fixture
@@ -39,23 +40,45 @@ def test_names_resolve_and_paths_win(shelf, tmp_path, monkeypatch):
 def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     policy = load_policy("mini")
-    assert policy.skill == "search"
+    assert policy.skill == policy.trained_skill == NamedSkill("search", SkillConfig(centre_gain=1))
     by_path = load_policy(shelf / "mini")
     obs = np.zeros((3, 8))
     np.testing.assert_array_equal(policy.vectors_for(obs), by_path.vectors_for(obs))
 
 
+def test_a_manifest_whose_skill_does_not_read_is_one_policy_error(shelf):
+    from mjx_peg.policy.export import PolicyError
+
+    path = shelf / "mini" / "manifest.json"
+    good = json.loads(path.read_text())
+    for skill, message in (({"name": "wiggle", "constants": None}, "unknown skill 'wiggle'"),
+                           ({"name": "spiral", "constants": {"spiral_speed": -1}}, "spiral_speed"),
+                           ({"constants": None}, "'name'")):  # fmt: skip
+        path.write_text(json.dumps({**good, "skill": skill}))
+        with pytest.raises(PolicyError, match="its skill is not readable") as error:
+            load_policy(shelf / "mini")
+        assert message in str(error.value) and len(str(error.value).splitlines()) == 1
+
+
 def test_the_shipped_policies_load_and_say_how_they_were_made():
-    """The README's policies are shipped; each loads, runs its own skill, and its provenance
-    names the commit and command that trained it."""
+    """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
+    running by default the shipped skill (`spiral`, the skill their published numbers used;
+    `paper` was trained with an earlier one, `search`, which its config records), every
+    constant in its manifest; its provenance names the commit and command that trained it."""
     names = shipped.shipped_names()
-    assert {"quick", "paper", "transfer"} <= set(names)
+    assert names == ["paper", "quick", "transfer"]
     for name in names:
         policy = load_policy(name)
         vectors = policy.vectors_for(np.zeros((2, 8)))
         assert vectors.shape == (2, 38) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
-        assert policy.skill == json.loads((folder / "config.json").read_text())["skill"]
+        manifest = json.loads((folder / "manifest.json").read_text())
+        spiral = NamedSkill("spiral", SKILLS["spiral"])
+        assert manifest["skill"] == spiral.record() and policy.skill == spiral
+        config = json.loads((folder / "config.json").read_text())
+        trained = "search" if name == "paper" else "spiral"
+        assert policy.trained_skill.name == config["skill"] == trained
+        assert config["skill_constants"] == constants_record(policy.trained_skill.config)
         provenance = json.loads((folder / "provenance.json").read_text())
         assert len(provenance["commit"]) == 40 and "train.py" in provenance["command"]
 

@@ -3,6 +3,7 @@ safety stops, the policy's numbers, no JAX, and one-line errors."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -22,6 +23,7 @@ from mjx_peg.robot.runtime import (
 )
 from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.skill.search import SKILLS, NamedSkill, skill_config
 from mjx_peg.world import constants
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -37,86 +39,60 @@ def _specs(n=4, seed=3, linear_mm=2.0, angular_deg=2.0):
     return sample_trials(task, seed, n)
 
 
-def test_simulated_arm_runs_the_engines_trial():
-    """At 500 Hz the runtime on SimArm is the C engine's trial: the same free-space motion to
-    1e-12 m and the same outcomes. (The wrench differs from the engine's batched arithmetic in
-    the last bit, ~1e-16 N; contact can amplify that, so positions after contact agree to 1 mm,
-    not to the bit.)"""
+@pytest.mark.parametrize("skill", ["paper", "spiral"])
+def test_simulated_arm_runs_the_engines_trial(skill):
+    """At 500 Hz the runtime on SimArm is the C engine's trial, each skill: the runtime runs the
+    engines' period on a batch of one, so every command's tcp position follows the engine's
+    trial (run alone) within 1e-9 m to the end, contact included, and the trial ends as in the
+    engine's batch: the same outcome, time and commands, the tip within 1e-9 m."""
     specs, vec = _specs(), baseline_params()
-    engine_tcp, engine_wrench = [], []
-
-    def observe(batch, rows, wrench):
-        engine_tcp.append(batch.tcp_pos[0].copy())
-        engine_wrench.append(wrench[0].copy())
-
-    result = cpu_engine.run_trials(
-        specs.take([0]), as_controller_params(vec, 1), SHORT, workers=1, observer=observe
-    )
-    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), SHORT, workers=1)
-    assert results.success.any() and not results.success.all()  # both outcomes are compared
+    config = SHORT.replace(search=skill_config(skill))
+    batch = cpu_engine.run_on_cpu(specs, as_controller_params(vec, len(specs)), config, threads=1)
+    assert batch.success.any() and not batch.success.all()  # both outcomes are compared
     for i in range(len(specs)):
+        engine_tcp, engine_wrench = [], []
+
+        def observe(lane, rows, wrench, tcp=engine_tcp, wrenches=engine_wrench):
+            tcp.append(lane.tcp_pos[0].copy())
+            wrenches.append(wrench[0].copy())
+
+        alone = cpu_engine.run_on_cpu(specs.take([i]), as_controller_params(vec, 1), config,
+                                      threads=1, observer=observe)  # fmt: skip
         arm = SimArm(specs, i)
-        runtime = SkillRuntime(vec, HoleEstimate.of_trial(specs, i), SHORT)
+        runtime = SkillRuntime(vec, HoleEstimate.of_trial(specs, i), config)
         run = run_skill(arm, runtime, done=arm.inserted)
-        assert run.success == results.success[i] and run.stopped == ""
-        assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
-        assert run.commands == results.steps[i]
-        np.testing.assert_allclose(arm.tip_pos(), results.final_tip_pos[i], atol=1e-3)
-        if i == 0:
-            assert result.steps[0] == run.commands
-            np.testing.assert_allclose(run.log["tcp_pos"][:200], np.array(engine_tcp)[:200],
-                                       atol=1e-12, rtol=0)  # fmt: skip
-            # The same F/T readings: the trial's noise and bias, latency, filter, damping.
-            np.testing.assert_allclose(run.log["wrench"][:200], np.array(engine_wrench)[:200],
-                                       atol=1e-9, rtol=0)  # fmt: skip
-            assert np.abs(run.log["wrench"][1:200]).max() > 1e-3  # the noise is there
-
-
-def test_simulated_arm_runs_the_engines_alignment():
-    """The alignment's goal rotation is carried by the runtime as by the engine: through holes
-    tilted up to 12 deg, the same outcomes, times and commands."""
-    from mjx_peg.skill.search import skill_config
-
-    task = TaskConfig(shapes=("circle",), linear_error=0.001, angular_error=np.deg2rad(12.0))
-    specs, vec = sample_trials(task, 3, 8).take([0, 1, 4]), baseline_params()
-    config = TrialConfig(time_limit_s=6.0, search=skill_config("align"))
-    results = cpu_engine.run_trials(specs, as_controller_params(vec, len(specs)), config,
-                                    workers=1)  # fmt: skip
-    assert results.success.all()  # each went deep enough for the tilt to adapt
-    for i in range(len(specs)):
-        arm = SimArm(specs, i)
-        run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, i), config),
-                        done=arm.inserted)  # fmt: skip
-        assert run.success and run.commands == results.steps[i]
-        assert run.time_s == pytest.approx(results.time_s[i], abs=1e-9)
+        assert run.success == batch.success[i] == alone.success[0] and run.stopped == ""
+        assert run.time_s == pytest.approx(batch.time_s[i], abs=1e-9)
+        assert run.commands == batch.steps[i] == alone.steps[0] == len(engine_tcp)
+        np.testing.assert_allclose(run.log["tcp_pos"], engine_tcp, atol=1e-9, rtol=0)
+        np.testing.assert_allclose(arm.tip_pos(), batch.final_tip_pos[i], atol=1e-9, rtol=0)
+        # The same F/T readings: the trial's noise and bias, latency, filter, damping.
+        np.testing.assert_allclose(run.log["wrench"], engine_wrench, atol=1e-9, rtol=0)
+        assert np.abs(run.log["wrench"][1:200]).max() > 1e-3  # the noise is there
 
 
 def test_simulated_arm_runs_the_engines_spiral():
-    """The spiral's state is carried by the runtime as by the engine: two pegs that the shipped
-    `paper` policy leaves on the rim with the alignment alone (the 500 trials of
-    experiments/contact.py, +-4 mm / +-6 deg, seed 1) insert with the spiral, with the same
-    outcomes, times and commands on the simulated arm."""
-    from mjx_peg.skill.search import skill_config
-
+    """The spiral's state is carried by the runtime as by the engine: a peg that the shipped
+    `paper` policy leaves on the rim with the spiral skill's spiral off (trial 155 of the 500 of
+    experiments/contact.py, +-4 mm / +-6 deg, seed 1) inserts with it, with the same outcome,
+    time and commands on the simulated arm."""
     task = TaskConfig(shapes=("circle", "square"), sizes=(0.05,), linear_error=0.004,
                       angular_error=np.deg2rad(6.0))  # fmt: skip
-    specs = sample_trials(task, 1, 500).take([155, 489])
+    specs = sample_trials(task, 1, 500).take([155])
     vectors = load_policy("paper").controller_vectors(specs)
+    spiral = skill_config("spiral")
     runs = {
-        name: cpu_engine.run_trials(
-            specs, as_controller_params(vectors, len(specs)), workers=1,
-            config=TrialConfig(time_limit_s=8.0, search=skill_config(name)),
-        )
-        for name in ("align", "spiral")
+        name: cpu_engine.run_on_cpu(specs, as_controller_params(vectors, 1), threads=1,
+                                    config=TrialConfig(time_limit_s=8.0, search=search))
+        for name, search in (("still", spiral.replace(spiral_speed=0.0)), ("spiral", spiral))
     }  # fmt: skip
-    assert not runs["align"].success.any() and runs["spiral"].success.all()
-    config = TrialConfig(time_limit_s=8.0, search=skill_config("spiral"))
-    for i in range(len(specs)):
-        arm = SimArm(specs, i)
-        run = run_skill(arm, SkillRuntime(vectors[i], HoleEstimate.of_trial(specs, i), config),
-                        done=arm.inserted)  # fmt: skip
-        assert run.success and run.commands == runs["spiral"].steps[i]
-        assert run.time_s == pytest.approx(runs["spiral"].time_s[i], abs=1e-9)
+    assert not runs["still"].success[0] and runs["spiral"].success[0]
+    config = TrialConfig(time_limit_s=8.0, search=spiral)
+    arm = SimArm(specs, 0)
+    run = run_skill(arm, SkillRuntime(vectors[0], HoleEstimate.of_trial(specs, 0), config),
+                    done=arm.inserted)  # fmt: skip
+    assert run.success and run.commands == runs["spiral"].steps[0]
+    assert run.time_s == pytest.approx(runs["spiral"].time_s[0], abs=1e-9)
 
 
 def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
@@ -128,7 +104,7 @@ def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     specs, vec = sample_trials(task, 3, 6).take([0]), baseline_params().copy()
     vec[0] = 1e-6  # k_t
     config = TrialConfig(time_limit_s=10.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, threads=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.settled[0], result.summary()
     arm = SimArm(specs, 0)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
@@ -260,7 +236,7 @@ def test_protective_stop_on_the_sensed_tool_force():
     the engine flags the same trial `protective_stop` after the same number of commands."""
     specs, vec = _specs(n=1, linear_mm=3.0, angular_deg=4.0), baseline_params()
     config = SHORT.replace(max_tool_force=15.0)
-    result = cpu_engine.run_trials(specs, as_controller_params(vec, 1), config, workers=1)
+    result = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
     assert result.protective_stop[0] and not result.success[0]
     arm = SimArm(specs, 0, config=config)
     run = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config))
@@ -269,13 +245,13 @@ def test_protective_stop_on_the_sensed_tool_force():
 
 
 def test_runtime_stops_on_a_non_finite_torque(monkeypatch):
-    from mjx_peg.robot import runtime as module
+    from mjx_peg.engines import period
 
     arm = _FakeArm(lambda s, k: s)
     runtime = SkillRuntime(baseline_params(), arm.hole, SHORT)
     runtime.start(arm.read())
     assert np.all(np.isfinite(runtime.torque(arm.read())))
-    monkeypatch.setattr(module, "skill_torque", lambda *a: np.full((1, 6), np.nan))
+    monkeypatch.setattr(period, "skill_torque", lambda *a: np.full((1, 6), np.nan))
     with pytest.raises(SafetyStop, match="the controller returned a non-finite torque"):
         runtime.torque(arm.read())
 
@@ -302,7 +278,6 @@ def test_the_manifest_says_how_actions_become_numbers(tmp_path):
     """A centred-map policy decodes around its recorded centre; a manifest written before the
     centred map (no "map") decodes with the sigmoid map, as it was trained; an unknown map or a
     centre on a range's edge is one PolicyError."""
-    import json
 
     from mjx_peg.policy.export import PolicyError
     from mjx_peg.skill.params import controller_from_action, vector_from_controller
@@ -365,6 +340,9 @@ def test_cli_runs_and_reports(tmp_path, capsys):
     assert "baseline on the simulated arm at 250 Hz commands, circle 50 mm" in out
     rows = (tmp_path / "runs.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[1].split(",")[3] == "125"  # 0.5 s at 250 Hz, not inserted
+    # the skill the trials ran, every constant: the baseline's, the paper's
+    skill = json.loads((tmp_path / "skill.json").read_text())
+    assert skill == NamedSkill("paper", SKILLS["paper"]).record()
 
 
 @pytest.mark.parametrize(

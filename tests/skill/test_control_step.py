@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from mjx_peg.engines.trial import TrialConfig, control_config, fitted_basis
 from mjx_peg.skill import control_step
 from mjx_peg.skill.baseline import baseline_controller
-from mjx_peg.skill.search import skill_config
+from mjx_peg.skill.search import SkillConfig, skill_config
 from mjx_peg.world.rotations import tool_down_rotation
 
 
@@ -90,24 +90,33 @@ def test_at_rest_on_the_goal_the_torque_is_the_bias():
     np.testing.assert_allclose(u, args["bias"], atol=1e-9)
 
 
-@pytest.mark.parametrize("skill_name", ["paper", "search", "align", "spiral"])
+# The skills, and the contact search's elements one by one: the centring alone, then the alignment.
+SEARCHES = {
+    "paper": SkillConfig(),
+    "centring": SkillConfig(centre_gain=1.0),
+    "alignment": SkillConfig(centre_gain=1.0, align_rate=1.0),
+    "spiral": skill_config("spiral"),
+}
+
+
+@pytest.mark.parametrize("skill_name", list(SEARCHES))
 def test_numpy_and_jax_agree(x64, skill_name):
     import jax
     import jax.numpy as jnp
 
     rng = np.random.default_rng(2)
     skill, args = _inputs(rng, 16, baseline_controller())
-    trial = TrialConfig(search=skill_config(skill_name))
+    trial = TrialConfig(search=SEARCHES[skill_name])
     if skill_name != "paper":  # half the rows pressed firmly enough to open the gate
         args["wrench"][::2, 2] = -rng.uniform(10.0, 40.0, 8)
-    if skill_name in ("align", "spiral"):  # the goal turned by what the alignment found
+    if skill_name in ("alignment", "spiral"):  # the goal turned by what the alignment found
         args["aligned"] = rng.normal(0.0, 0.1, (16, 3))
     if skill_name == "spiral":  # and moved along the spiral, its press lighter
         args["spiral"] = np.stack([rng.uniform(0.0, 20.0, 16), np.full(16, 0.08),
                                    rng.uniform(0.0, 1.0, 16)], axis=-1)  # fmt: skip
     basis = fitted_basis(TrialConfig().dmp)
     u_np = _torque(skill, basis, args, trial=trial)
-    if skill_name == "search":  # the pressed rows' goals moved (some torques are clamped)
+    if skill_name == "centring":  # the pressed rows' goals moved (some torques are clamped)
         u_paper = _torque(skill, basis, args)
         assert (np.abs(u_np[::2] - u_paper[::2]).max(axis=1) > 1e-3).sum() >= 4
         np.testing.assert_array_equal(u_np[1::2], u_paper[1::2])

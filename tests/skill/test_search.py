@@ -258,10 +258,11 @@ def test_insertion_press_stiffens_the_axial_compliance_deep_in_the_hole():
 def test_the_paper_skill_is_the_default_and_changes_no_torque():
     from mjx_peg.engines.trial import TrialConfig, control_config
 
+    assert list(search.SKILLS) == list(search.SKILL_DESCRIPTIONS) == ["paper", "spiral"]
     assert not search.skill_config("paper").active and not TrialConfig().search.active
-    assert search.skill_config("search").active
-    assert search.skill_config("align") == search.skill_config("search").replace(align_rate=1.0)
-    spiral = search.skill_config("align").replace(
+    spiral = SkillConfig(
+        centre_gain=1.0,
+        align_rate=1.0,
         spiral_speed=0.03,
         movement_s=1.3,
         movement_cruise=0.5,
@@ -273,6 +274,35 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
     assert control_config(TrialConfig()).search == search.skill_config("paper")
 
 
+def test_a_skill_is_recorded_by_its_name_and_every_constant():
+    """`constants_record` is every SkillConfig field in plain JSON (an unbounded budget as
+    null) and reads back as it was; the names files of earlier versions use read as those
+    skills were (`search`: the centring alone; `align`: with the alignment); a bad record is
+    one UsageError naming the field."""
+    import json
+
+    for config in (*search.SKILLS.values(), SkillConfig(centre_gain=1.0, align_max_yaw=0.1)):
+        record = search.constants_record(config)
+        assert list(record) == list(SkillConfig.__dataclass_fields__)
+        text = json.dumps(record, allow_nan=False)
+        assert search.constants_from_record(json.loads(text)) == config
+    assert search.constants_record(search.SKILLS["paper"])["search_budget"] is None
+    assert search.named_skill("search").config == SkillConfig(centre_gain=1.0)
+    assert search.named_skill("align").config == SkillConfig(centre_gain=1.0, align_rate=1.0)
+    assert search.named_skill("spiral") == search.NamedSkill("spiral", search.SKILLS["spiral"])
+    partial = search.named_skill("spiral", {"centre_gain": 2.0})  # recorded before the others
+    assert partial.config == SkillConfig(centre_gain=2.0)
+    for record, message in (({"wiggle": 1.0}, "'wiggle' is not a SkillConfig field"),
+                            ({"centre_gain": "1"}, "centre_gain must be a number"),
+                            ({"centre_gain": True}, "centre_gain must be a number"),
+                            ({"centre_gain": -1.0}, "SkillConfig.centre_gain must be"),
+                            ([1.0], "must be an object")):  # fmt: skip
+        with pytest.raises(UsageError, match=message):
+            search.named_skill("spiral", record)
+    with pytest.raises(UsageError, match="unknown skill 'wiggle': choose one of paper, spiral"):
+        search.named_skill("wiggle")
+
+
 def test_a_skill_that_names_its_movement_runs_the_path_of_that_movement():
     """`SkillConfig.movement_s` and `movement_cruise` replace the DMP's movement duration T and
     cruise; the forcing fitted at them follows the cruising path of T (within 1 % of the travel),
@@ -281,7 +311,7 @@ def test_a_skill_that_names_its_movement_runs_the_path_of_that_movement():
     from mjx_peg.skill import dmp
 
     assert TrialConfig().movement == TrialConfig().dmp
-    assert TrialConfig(search=search.skill_config("align")).movement == TrialConfig().dmp
+    assert TrialConfig(search=search.skill_config("paper")).movement == TrialConfig().dmp
     movement = TrialConfig(search=search.skill_config("spiral")).movement
     assert movement == dmp.DMPConfig(duration=1.3, cruise=0.5)
     y0, goal = np.array([0.0, 0.0, -0.15, 0.1, -0.05, 0.2]), np.zeros(6)
@@ -350,12 +380,17 @@ def test_bad_config_and_unknown_skill_are_one_clear_error():
         SkillConfig(search_budget=0.0)
     with pytest.raises(UsageError, match="withdraw_s"):
         SkillConfig(withdraw_s=0.0)
-    with pytest.raises(UsageError, match="paper, search"):
+    with pytest.raises(UsageError, match="choose one of paper, spiral"):
         search.skill_config("wiggle")
 
 
+CENTRING = SkillConfig(centre_gain=1.0)  # the contact search's centring alone
+ALIGNMENT = CENTRING.replace(align_rate=1.0)  # the centring and the alignment
+
+
 def _baseline_trials(shape, linear_error, angular_deg, seed, n, time_limit_s, skills):
-    """{skill: TrialResult} of the baseline's numbers on the same n trials of one 50 mm shape."""
+    """{name: TrialResult} of the baseline's numbers on the same n trials of one 50 mm shape,
+    for each skill {name: SkillConfig}."""
     from mjx_peg.engines import run_trials
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.skill.baseline import baseline_params
@@ -366,9 +401,8 @@ def _baseline_trials(shape, linear_error, angular_deg, seed, n, time_limit_s, sk
     specs = sample_trials(task, seed, n)
     return {
         name: run_trials(specs, baseline_params(), engine="mujoco", threads=1,
-                         config=TrialConfig(time_limit_s=time_limit_s,
-                                            search=search.skill_config(name)))
-        for name in skills
+                         config=TrialConfig(time_limit_s=time_limit_s, search=skill))
+        for name, skill in skills.items()
     }  # fmt: skip
 
 
@@ -377,11 +411,11 @@ def test_centring_frees_pegs_that_the_paper_skill_leaves_on_the_rim():
     points away from the hole): the paper's skill leaves half of these square pegs on the
     rim after 8 s, the centring inserts all of them (measured: 6/12 and 12/12)."""
     results = _baseline_trials("square", 0.006, 0.0, seed=5, n=12, time_limit_s=8.0,
-                               skills=("paper", "search"))  # fmt: skip
+                               skills={"paper": SkillConfig(), "centring": CENTRING})  # fmt: skip
     assert results["paper"].success.sum() <= 8
-    assert results["search"].success.sum() >= 11
-    assert not results["search"].protective_stop.any()
-    assert np.median(results["search"].chatter) < 5.0
+    assert results["centring"].success.sum() >= 11
+    assert not results["centring"].protective_stop.any()
+    assert np.median(results["centring"].chatter) < 5.0
 
 
 @pytest.mark.slow
@@ -391,10 +425,10 @@ def test_alignment_takes_pegs_through_tilted_holes():
     off the hole's axis and creeps through it against the walls' friction; with the alignment
     nearly all insert (measured: 2/8 and 7/8 in 10 s; the eighth is tilted 16 deg)."""
     results = _baseline_trials("circle", 0.001, 12.0, seed=3, n=8, time_limit_s=10.0,
-                               skills=("search", "align"))  # fmt: skip
-    assert results["search"].success.sum() <= 3
-    assert results["align"].success.sum() >= 7
-    assert not results["align"].protective_stop.any()
+                               skills={"centring": CENTRING, "alignment": ALIGNMENT})  # fmt: skip
+    assert results["centring"].success.sum() <= 3
+    assert results["alignment"].success.sum() >= 7
+    assert not results["alignment"].protective_stop.any()
 
 
 @pytest.mark.slow
@@ -414,8 +448,8 @@ def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim():
     vectors = load_policy("paper").controller_vectors(specs)
     results = {
         name: run_trials(specs, vectors, engine="mujoco", threads=1,
-                         config=TrialConfig(time_limit_s=10.0, search=search.skill_config(name)))
-        for name in ("align", "spiral")
+                         config=TrialConfig(time_limit_s=10.0, search=skill))
+        for name, skill in (("align", ALIGNMENT), ("spiral", search.skill_config("spiral")))
     }  # fmt: skip
     assert results["align"].success.sum() == 0
     assert results["spiral"].success.sum() >= 7

@@ -73,6 +73,24 @@ def test_sampling_holds_the_reading_between_samples():
     assert out.tolist() == [1, 1, 1, 1, 5, 5, 5, 5, 9, 9, 9, 9, 13, 13, 13, 13, 17, 17, 17, 17]
 
 
+@pytest.mark.parametrize("period_steps", [1, 4])
+def test_an_arms_own_sensor_path_gets_the_software_filter_alone(period_steps):
+    """`filter_params`: whatever the nominal sensor's noise, bias, latency and sampling, the
+    pipeline passes an arm's reading through the software filter alone, bit for bit, its pole
+    a^n for a command every n physics steps."""
+    config = sensor.SensorConfig(rate_hz=125.0, delay_steps=3)  # none of these may act
+    params = sensor.filter_params(config, T, np.zeros(2, np.uint32), period_steps)
+    a = math.exp(-2.0 * math.pi * config.cutoff_hz * T) ** period_steps
+    np.testing.assert_allclose(params.alpha, a, rtol=1e-15)
+    state = sensor.initial_state(params, config.max_delay_steps + 1)
+    filtered = np.zeros((2, 6))
+    readings = np.random.default_rng(0).normal(0.0, 20.0, (30, 2, 6))
+    for k, reading in enumerate(readings):
+        sensed, state = sensor.step(params, state, reading, np.full(2, k))
+        filtered = sensor.filter_step(filtered, reading, params.alpha)
+        np.testing.assert_array_equal(sensed, filtered)
+
+
 def test_noise_and_bias_have_their_statistics_and_the_tare_is_exact():
     config = sensor.SensorConfig(delay_steps=0, cutoff_hz=math.inf)
     steps, batch = 4000, 4

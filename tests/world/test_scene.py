@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_peg.world import constants, scene
+from mjx_peg.world import constants, mjcf, pose_solver, scene
 from mjx_peg.world.rotations import tool_down_rotation
 
 SIZES_MM = (25, 37, 50, 60)
@@ -61,7 +61,7 @@ def rot_angle(r1, r2):
 def place_tool_down(model, tcp_pos, yaw):
     """MjData with the arm's tcp at `tcp_pos`, tool pointing down at `yaw` (mj_forward done)."""
     ids = scene.scene_ids(model)
-    q = scene.solve_site_pose(model, tcp_pos, tool_down_rotation(yaw))
+    q = pose_solver.solve_site_pose(model, tcp_pos, tool_down_rotation(yaw))
     data = mujoco.MjData(model)
     data.qpos[ids.qpos_adr] = q
     mujoco.mj_forward(model, data)
@@ -226,7 +226,7 @@ def test_hole_clearance_measured_by_rays(shape, mm):
     # No gaps: the board top (z = HOLE_DEPTH) is solid from the hole's corners out to 0.1 m.
     r_corner = r_in / math.cos(math.pi / n)
     for _ in range(300):
-        a, rho = rng.uniform(0, 2 * np.pi), rng.uniform(r_corner + 1e-4, scene.BOARD_MIN_HALF_WIDTH)
+        a, rho = rng.uniform(0, 2 * np.pi), rng.uniform(r_corner + 1e-4, mjcf.BOARD_MIN_HALF_WIDTH)
         start = np.array([x + rho * math.cos(a), y + rho * math.sin(a), 0.2])
         hit = mujoco.mj_ray(model, data, start, np.array([0, 0, -1.0]), board_only, 1, -1, geomid)
         assert hit == pytest.approx(0.2 - constants.HOLE_DEPTH, abs=1e-9), (a, rho)
@@ -332,8 +332,8 @@ def test_ft_sensor_tared_free_space_and_known_push(shape):
     scene.set_board_pose(model, 0.45, 0.0, 0.0)
     yaw, spot = 0.0, np.array([0.45 + 0.065, 0.0])  # a solid part of the board top
     top = constants.HOLE_DEPTH
-    q_high = scene.solve_site_pose(model, (*spot, top + 0.05), tool_down_rotation(yaw))
-    q_low = scene.solve_site_pose(
+    q_high = pose_solver.solve_site_pose(model, (*spot, top + 0.05), tool_down_rotation(yaw))
+    q_low = pose_solver.solve_site_pose(
         model, (*spot, top + 0.003), tool_down_rotation(yaw), q_init=q_high
     )
     data = mujoco.MjData(model)
@@ -382,7 +382,7 @@ def test_ft_sensor_tared_free_space_and_known_push(shape):
     ],
 )
 def test_bad_input_raises_one_line_value_error(shape, size):
-    for fn in (scene.build_mjcf, scene.load_model):
+    for fn in (mjcf.build_mjcf, scene.load_model):
         with pytest.raises(ValueError) as err:
             fn(shape, size)
         msg = str(err.value)

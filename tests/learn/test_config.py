@@ -1,0 +1,66 @@
+"""learn/config.py: TrainConfig, its presets, and the config.json of a run (older ones too)."""
+
+import json
+
+import pytest
+
+from mjx_peg.errors import UsageError
+from mjx_peg.learn.config import PRESETS, TrainConfig
+
+
+def test_the_default_config_is_the_default_preset():
+    assert TrainConfig() == PRESETS["quick"]
+    quick = TrainConfig()
+    assert (quick.linear_mm, quick.angular_deg, quick.trials, quick.skill) == (
+        8.0,
+        12.0,
+        3584,
+        "spiral",
+    )
+    assert quick.iterations == 14  # 3,584 trials in iterations of 256
+
+
+def test_each_preset_is_the_default_with_a_budget_or_a_shape_changed():
+    default = TrainConfig().to_json()
+    changed = {name: {k: v for k, v in p.to_json().items() if default[k] != v}
+               for name, p in PRESETS.items()}  # fmt: skip
+    assert changed == {
+        "quick": {},
+        "paper": {"preset": "paper", "trials": 8192},
+        "transfer": {"preset": "transfer", "shapes": ("triangle",), "trials": 800, "num_envs": 40},
+    }
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_a_config_reads_back_from_its_json(name):
+    config = PRESETS[name].replace(seed=7, init_from="runs/x" if name == "transfer" else None)
+    assert TrainConfig.from_json(json.loads(config.dumps())) == config
+
+
+def test_an_older_config_keeps_the_meaning_it_was_written_with():
+    """A config.json without the fields it predates, or without the error ranges and budget that
+    TrainConfig's defaults held before they became the quick preset's."""
+    full = TrainConfig().to_json()
+    added = ("action_map", "grasp_model", "skill")  # fields added since the first runs
+    defaulted = ("linear_mm", "angular_deg", "trials")  # the former defaults
+    old = {k: v for k, v in full.items() if k not in added + defaulted}
+    config = TrainConfig.from_json(old)
+    assert config.action_map == "sigmoid" and config.grasp_model == "flange"
+    assert (config.skill, config.linear_mm, config.angular_deg, config.trials) == (
+        "paper", 4.0, 6.0, 12288,
+    )  # fmt: skip
+    assert config.task().linear_error == pytest.approx(0.004)
+    assert config.trial().search == TrainConfig(skill="paper").trial().search
+
+
+def test_bad_configs_are_refused_naming_the_field():
+    with pytest.raises(UsageError, match=r"unknown fields \['workers'\]"):
+        TrainConfig.from_json({**TrainConfig().to_json(), "workers": 2})
+    with pytest.raises(UsageError, match="--trials must be a positive integer"):
+        TrainConfig(trials=0)
+    with pytest.raises(UsageError, match="--num-envs 100 must be a multiple of num_minibatches 3"):
+        TrainConfig(num_envs=100, num_minibatches=3)
+    with pytest.raises(UsageError, match="unknown shape 'hexagon'"):
+        TrainConfig(shapes=("circle", "hexagon"))
+    with pytest.raises(UsageError, match="unknown skill 'search-old'"):
+        TrainConfig(skill="search-old")
