@@ -117,14 +117,15 @@ def read_json(
     most `max_depth` deep, without NaN or Infinity (unless `allow_nan`); `what` names it in the
     message."""
     text = read_text(path, limit, error)
+    too_deep = error(f"{path} is not {what} (nested deeper than {max_depth} levels)")
     try:
         doc = json.loads(text, **({} if allow_nan else {"parse_constant": _no_constant}))
     except RecursionError:
-        _refuse(error, path, f"is not {what}: nested deeper than {max_depth} levels")
+        raise too_deep from None
     except ValueError as e:
-        _refuse(error, path, f"is not {what} ({' '.join(str(e).split())})")
+        raise error(f"{path} is not {what} ({' '.join(str(e).split())})") from None
     if depth(doc) > max_depth:
-        _refuse(error, path, f"is not {what}: nested deeper than {max_depth} levels")
+        raise too_deep
     return doc
 
 

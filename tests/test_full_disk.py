@@ -89,7 +89,7 @@ def test_a_training_table_that_does_not_fit_is_named_and_the_resume_cuts_it_back
 
 
 @pytest.mark.slow
-def test_the_robot_cli_on_a_full_disk_is_one_line_and_leaves_no_empty_runs_csv(tmp_path):
+def test_the_robot_cli_on_a_full_disk_is_one_line_and_leaves_nothing_half_written(tmp_path):
     code = (
         "limit(40)\n"  # runs.csv's header is 90 bytes
         "from mjx_peg.robot import cli\n"
@@ -99,6 +99,6 @@ def test_the_robot_cli_on_a_full_disk_is_one_line_and_leaves_no_empty_runs_csv(t
     done = _python(code, tmp_path / "out")
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
-        f"python -m mjx_peg.robot: error: {tmp_path / 'out' / 'runs.csv'}: File too large"
-    ]
-    assert not (tmp_path / "out" / "runs.csv").exists()
+        f"python -m mjx_peg.robot: error: {tmp_path / 'out' / 'skill.json'}: File too large"
+    ]  # the first file it writes, skill.json (~600 bytes): named, not half-written
+    assert not (tmp_path / "out").exists()  # the folder it made for the run, removed again

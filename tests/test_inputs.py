@@ -161,7 +161,7 @@ POLICY_DAMAGE = {
     "shapes is a string": (lambda r: _edit_manifest(r, lambda d: d["config"].update(shapes="x")),
                            "config.shapes"),
     "nested 200,000 deep": (lambda r: (r / "manifest.json").write_text(DEEP),
-                            "manifest.json: is not a policy manifest: nested deeper"),
+                            "manifest.json is not a policy manifest (nested deeper"),
     "one-number layer": (lambda r: _edit_manifest(r, lambda d: d["network"].update(layers=[[8]])),
                          "network.layers holds [8]"),
     "layers do not chain": (lambda r: _edit_manifest(r, lambda d: d["network"].update(

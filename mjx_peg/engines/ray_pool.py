@@ -16,13 +16,11 @@ read from disk. Ray is imported only here, and only when asked for (`pip install
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 import warnings
 from collections.abc import Callable
 
-from mjx_peg import cli
 from mjx_peg.engines.processes import interleaved, merge, take_params
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.errors import UsageError
@@ -103,11 +101,9 @@ def _reachable(address: str, timeout_s: float = 5.0) -> None:
     """ClusterError unless HOST:PORT accepts a TCP connection (Ray itself waits minutes)."""
     import socket
 
-    try:
-        cli.ray_address(address)
-    except argparse.ArgumentTypeError as error:
-        raise ClusterError(f"a Ray address {error}") from None
     host, _, port = address.rpartition(":")
+    if not host or not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        raise ClusterError(f"a Ray address is auto, local or HOST:PORT, got {address[:60]!r}")
     try:
         socket.create_connection((host, int(port)), timeout=timeout_s).close()
     except OSError as error:
