@@ -249,7 +249,7 @@ def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypat
 
 
 def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_path):
-    names = run_script("experiments/catalogue.py", "--list").split()
+    names = run_script("experiments/catalogue.py", "--list").splitlines()
     assert len(names) >= 500 and len(set(names)) == len(names)
     groups = {name.split("/")[0] for name in names}
     assert {"edge", "damaged-policy", "kill", "concurrency", "ur5e", "ray", "env", "api"} <= groups

@@ -183,9 +183,9 @@ def main(argv=None) -> int:
         options = {k: v for k, v in options.items() if v is not None}
     if config.init_from:
         outdir.check_apart(out, {"--init-from": config.init_from})
-    cli.check_jax()
     if args.distributed:
-        join_distributed()
+        join_distributed()  # before anything asks JAX for its devices
+    cli.check_jax()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted
     from mjx_peg.learn.trainer import train
     from mjx_peg.world import mujoco_log
