@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import signals
+
 HERE = Path(__file__).resolve().parents[1]
 PY = sys.executable
 BIN = Path(sys.executable).parent
@@ -1272,15 +1274,6 @@ def ctrl_c_commands(runner: Runner) -> dict[str, tuple[list[str], str]]:
     }  # fmt: skip
 
 
-def _takes_sigterm(pid: int) -> bool:
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    caught = next(line for line in status.splitlines() if line.startswith("SigCgt:"))
-    return bool(int(caught.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
-
-
 def _signal_at(signum: int, at_s: float, twice: bool = False, from_handler: bool = False):
     """Send `signum` to the process group at `at_s` after the start (`from_handler`: after the
     program took its signals, if later); classify by exit status and lines."""
@@ -1289,7 +1282,7 @@ def _signal_at(signum: int, at_s: float, twice: bool = False, from_handler: bool
         start = time.monotonic()
         child = _start(case.argv, folder)
         if from_handler:
-            while not _takes_sigterm(child.pid) and child.poll() is None:
+            while not signals.taken(child.pid) and child.poll() is None:
                 time.sleep(0.002)
         time.sleep(max(0.0, at_s - (time.monotonic() - start)))
         if child.poll() is None:

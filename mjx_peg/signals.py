@@ -141,6 +141,17 @@ def working() -> None:
     _working = True
 
 
+def taken(pid: int) -> bool:
+    """Whether process `pid` has a handler for SIGTERM, which Python alone never installs: a
+    program of this package has taken its signals (Linux: /proc/PID/status; False elsewhere)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            caught = next((line for line in f if line.startswith("SigCgt:")), "SigCgt: 0")
+    except OSError:
+        return False
+    return bool(int(caught.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+
+
 def received() -> int | None:
     """The signal the command was stopped by (after `install`), or None."""
     return _received

@@ -262,22 +262,9 @@ def test_the_lock_goes_with_its_holder_and_a_refused_input_leaves_no_folder(tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]
 
 
-def _hold(out: Path):
-    """A process that holds `out` until it is killed."""
-    import subprocess
-    import sys
-
-    holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from mjx_peg import outdir\n"
-         "with outdir.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
-         str(out)],
-        stdout=subprocess.PIPE, text=True,
-    )  # fmt: skip
-    assert holder.stdout.readline().strip() == "held"
-    return holder
-
-
-def test_every_command_that_writes_an_output_directory_refuses_a_second_writer(tmp_path, capsys):
+def test_every_command_that_writes_an_output_directory_refuses_a_second_writer(
+    tmp_path, capsys, hold_out
+):
     """While another process holds --out: one line naming --out and the holder's pid, before
     anything is written (the holder's files untouched); once it is gone, the command runs."""
     from mjx_peg.evaluation import demo_cli
@@ -288,7 +275,7 @@ def test_every_command_that_writes_an_output_directory_refuses_a_second_writer(t
     out = tmp_path / "out"
     out.mkdir()
     (out / "theirs.txt").write_text("the first writer's\n")
-    holder = _hold(out)
+    holder = hold_out(out)
     commands = {
         robot_cli: ["--trials", "1", "--time-limit", "0.05", "--no-progress"],
         demo_cli: ["--frames", "0", "--time-limit", "0.05"],

@@ -42,16 +42,6 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
     }  # fmt: skip
 
 
-def _takes_sigterm(pid: int) -> bool:
-    """Whether the process has a handler for SIGTERM (Python alone has none: ours is up)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    caught = next(line for line in status.splitlines() if line.startswith("SigCgt:"))
-    return bool(int(caught.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
-
-
 def _stop(command: list[str], at_s: float, signum: int) -> tuple[int, list[str]]:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "JAX_PLATFORMS": "cpu"}
     start = time.monotonic()
@@ -60,7 +50,7 @@ def _stop(command: list[str], at_s: float, signum: int) -> tuple[int, list[str]]
         text=True, start_new_session=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
-    while not _takes_sigterm(child.pid) and child.poll() is None:
+    while not signals.taken(child.pid) and child.poll() is None:
         time.sleep(0.002)
     time.sleep(max(0.0, at_s - (time.monotonic() - start)))
     os.killpg(child.pid, signum)
