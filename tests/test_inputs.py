@@ -158,6 +158,8 @@ POLICY_DAMAGE = {
                          "manifest.json: config is not an object"),
     "skill is a list": (lambda r: _edit_manifest(r, lambda d: d["config"].update(skill=["spiral"])),
                         "config.skill"),
+    "no shapes": (lambda r: _edit_manifest(r, lambda d: d["config"].update(shapes=[])),
+                  "config.shapes"),
     "shapes is a string": (lambda r: _edit_manifest(r, lambda d: d["config"].update(shapes="x")),
                            "config.shapes"),
     "nested 200,000 deep": (lambda r: (r / "manifest.json").write_text(DEEP),

@@ -227,13 +227,15 @@ def _manifest_problem(manifest: dict) -> str | None:
     skill = config.get("skill", "paper")
     if not isinstance(skill, str) or not (skill in SKILLS or skill in file_versions.FORMER_SKILLS):
         return f"config.skill {str(skill)[:40]} is not one of {', '.join(SKILLS)}"
-    shapes = config.get("shapes", [])
-    if not isinstance(shapes, list) or not all(isinstance(s, str) and s in SHAPES for s in shapes):
-        return f"config.shapes is not a list of shapes of {', '.join(SHAPES)}"
-    sizes = config.get("size_mm", [])
-    if not isinstance(sizes, list) or not all(
-        type(v) in (int, float) and 0 < v < 1e3 for v in sizes
+    shapes, sizes = config.get("shapes"), config.get("size_mm")  # absent: not recorded
+    if shapes is not None and not (
+        isinstance(shapes, list) and shapes and all(s in SHAPES for s in map(str, shapes))
     ):
+        return f"config.shapes is not a list of shapes of {', '.join(SHAPES)}"
+    if sizes is not None and not (
+        isinstance(sizes, list) and sizes and all(type(v) in (int, float) and 0 < v < 1e3
+                                                  for v in sizes)
+    ):  # fmt: skip
         return "config.size_mm is not a list of sizes in mm"
     if "trials" in manifest and not (type(manifest["trials"]) is int and manifest["trials"] >= 0):
         return "trials is not a count"
