@@ -131,6 +131,9 @@ class RunDir:
 
     def truncate_tables(self, trials: int) -> None:
         """Drop rows written after the checkpoint that holds `trials` trials."""
+        for path in (self.metrics_path, self.trials_path):
+            if path.exists() or path.is_symlink():
+                inputs.regular_file(path)  # a FIFO or folder there: one line, never replaced
         if not (self.metrics_path.is_file() and self.trials_path.is_file()):
             self.start_tables()
             return
