@@ -88,7 +88,7 @@ def entry(prog: str, interrupted: str = "interrupted") -> Callable:
                     workers.shutdown()
                 if program:
                     code = _after_signal(prog, code)
-                    signals.uninstall()
+                    signals.finished()
             return code
 
         return run
@@ -231,8 +231,8 @@ def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
 
 
 def ray_address(text: str) -> str:
-    """argparse type of --ray: `auto`, `local` or HOST:PORT (a port in 1..65535, in ASCII
-    digits); the address as given."""
+    """argparse type of --ray: `auto`, `local` or HOST:PORT (a host name or address, a port in
+    1..65535, in ASCII digits); the address as given."""
     text = str(text).strip()
     if text in ("auto", "local"):
         return text
@@ -240,6 +240,10 @@ def ray_address(text: str) -> str:
     shown = _shown(text)
     if not host or not port:
         raise argparse.ArgumentTypeError(f"must be auto, local or HOST:PORT, got {shown}")
+    try:
+        host.strip("[]").encode("idna")  # a label over 63 characters, an empty label
+    except UnicodeError:
+        raise argparse.ArgumentTypeError(f"must start with a host name, got {shown}") from None
     if not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
         raise argparse.ArgumentTypeError(f"must end in a port 1..65535, got {shown}")
     return text

@@ -235,6 +235,20 @@ def write_atomic(path, data: bytes | str | Callable[[Path], object]) -> Path:
     return path
 
 
+def write_all_atomic(files) -> list[Path]:
+    """Write each (path, data) of `files` with `write_atomic`, all or none: if one fails, the
+    ones written before it are removed again (a rerun is then not refused for them)."""
+    written: list[Path] = []
+    try:
+        for path, data in files:
+            written.append(write_atomic(path, data))
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
+    return written
+
+
 def refuse_or_move(
     paths, force: bool, note: Callable[[str], None] | None = None, hint: str = ""
 ) -> None:

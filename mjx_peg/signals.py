@@ -157,12 +157,13 @@ def received() -> int | None:
     return _received
 
 
-def uninstall() -> None:
-    """Give SIGINT and SIGTERM back their handlers from before `install`."""
+def finished() -> None:
+    """The command has ended and the process exits: a signal from now on is ignored (a second
+    Ctrl-C must not turn a clean exit into a KeyboardInterrupt at shutdown)."""
     global _prog
     if not _in_main_thread():
         return
-    for signum, previous in _previous.items():
-        signal.signal(signum, previous)
+    for signum in _previous:
+        signal.signal(signum, signal.SIG_IGN)
     _previous.clear()
     _prog = None

@@ -327,3 +327,19 @@ def test_two_trainings_on_one_out_a_few_seconds_apart_the_second_is_refused(tmp_
     metrics = (tmp_path / "run" / "metrics.csv").read_text().splitlines()[1:]
     assert [int(row.split(",")[0]) for row in metrics] == list(range(1, 5))
     assert json.loads((tmp_path / "run" / "config.json").read_text())["seed"] == 3
+
+
+def test_files_written_together_are_all_there_or_none(tmp_path):
+    """A full disk at the second file (the scene's PNG after its MJCF, the demo's frames after
+    its plot): the first is removed again, so the same command reruns without --force."""
+    from mjx_peg import outdir
+
+    def full(path):
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError) as caught:
+        outdir.write_all_atomic([(tmp_path / "a.xml", "<a/>"), (tmp_path / "a.png", full)])
+    assert caught.value.filename == str(tmp_path / "a.png")
+    assert list(tmp_path.iterdir()) == []
+    written = outdir.write_all_atomic([(tmp_path / "a.xml", "<a/>"), (tmp_path / "b", b"x")])
+    assert [p.read_bytes() for p in written] == [b"<a/>", b"x"]

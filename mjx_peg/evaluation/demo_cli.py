@@ -219,14 +219,13 @@ def main(argv=None) -> int:
 
         mujoco_log.send_to(args.out)
         run = run_demo(specs, vector, config, args.frames)
-        outdir.write_atomic(outputs[0], lambda path: plot_trial(run, path))
-        wrote = [outputs[0].name]
+        files = [(outputs[0], lambda path: plot_trial(run, path))]
         strip = frame_strip(run, args.frames) if args.frames else None
         if strip is not None:
             from mjx_peg.world.render import save_png
 
-            outdir.write_atomic(outputs[1], lambda path: save_png(path, strip))
-            wrote.append(outputs[1].name)
+            files.append((outputs[1], lambda path: save_png(path, strip)))
+        wrote = [p.name for p in outdir.write_all_atomic(files)]  # both or neither
     print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:
         return 0

@@ -72,8 +72,9 @@ def main(argv=None) -> int:
         if gl.fallback_note():
             cli.note(PROG, f"warning: {gl.fallback_note()}")
         rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-        outdir.write_atomic(xml_path, xml)
-        outdir.write_atomic(png_path, lambda path: render.save_png(path, rgb))
+        outdir.write_all_atomic(
+            [(xml_path, xml), (png_path, lambda path: render.save_png(path, rgb))]
+        )
     print(xml_path)
     print(png_path)
     return 0
