@@ -1370,11 +1370,13 @@ API_CALLS = {
 
 
 def api_cases(runner: Runner) -> list[Case]:
-    """Each call in a fresh interpreter: a UsageError (one line through this wrapper) or a
-    clean return counts as handled; any other exception is a traceback."""
+    """Each call in a fresh interpreter: a UsageError or an OSError (what the command lines
+    print as one line; here through this wrapper) or a clean return counts as handled; any
+    other exception is a traceback."""
     wrapper = (
-        "import sys\nfrom mjx_peg.errors import UsageError\ntry:\n    exec(sys.argv[1])\n"
-        "except UsageError as e:\n    print(f'api: error: {e}', file=sys.stderr); sys.exit(2)\n"
+        "import sys\nfrom mjx_peg.errors import UsageError, message\ntry:\n    exec(sys.argv[1])\n"
+        "except (UsageError, OSError) as e:\n"
+        "    print(f'api: error: {message(e)}', file=sys.stderr); sys.exit(2)\n"
     )
     return [Case(f"api/{name}", "the Python API", [PY, "-c", wrapper, code], expect="any",
                  timeout=180, prog="api") for name, code in API_CALLS.items()]  # fmt: skip

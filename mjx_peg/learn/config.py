@@ -91,6 +91,14 @@ class TrainConfig:
     skill_constants: SkillConfig | None = None
 
     def __post_init__(self):
+        try:
+            self._validate()
+        except (TypeError, ValueError) as e:  # a field of another type (a config.json's)
+            if isinstance(e, UsageError):
+                raise
+            raise UsageError(f"TrainConfig: a field has the wrong type ({e})") from None
+
+    def _validate(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
         for s in shapes:
             if s not in SHAPES:

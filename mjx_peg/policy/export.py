@@ -16,6 +16,7 @@ truncated or inconsistent. No JAX is imported here: the real robot runs this.
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -248,6 +249,8 @@ def load_policy(path) -> Policy:
     """Load a policy from a run directory (or its policy.npz), or a shipped policy by name
     (`policy/shipped.py`: "paper" is policies/paper); PolicyError on any defect. Only the
     arrays the manifest names are read from policy.npz, each checked by its header first."""
+    if not isinstance(path, str | os.PathLike):
+        raise PolicyError(f"a policy is a path or a shipped policy's name, not {path!r:.40}")
     path = Path(path)
     if not path.exists() and str(path) in shipped.shipped_names():
         path = shipped.SHIPPED_DIR / str(path)
