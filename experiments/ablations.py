@@ -5,9 +5,9 @@
 
     paper   the paper's compliant DMP as written (skill.search.SKILLS["paper"])
     search  its contact search's centring alone: the goal moved away from the centre of pressure
-            of a peg resting on the board top (docs/rim_escape.md)
+            of a peg resting on the board top (docs/design/rim_escape.md)
     align   the centring, and the goal's rotation following the moment the peg feels, its tilt
-            once the tcp is 20 mm below the hole's estimated entrance (docs/tilted_hole.md)
+            once the tcp is 20 mm below the hole's estimated entrance (docs/design/tilted_hole.md)
     spiral  the shipped skill (skill.search.SKILLS["spiral"]): the alignment, the spiral, the
             insertion press, the faster movement and the search's budget (skill/search.py)
 

@@ -1,5 +1,5 @@
 """Where a trial's chatter comes from: one trial of an evaluation replayed, its true axial force
-against what the compliance sees (docs/rim_chatter.md).
+against what the compliance sees (docs/design/rim_chatter.md).
 
     python experiments/chatter_trace.py --eval docs/eval/paper_spiral_50mm_small_board \\
         --range 71 --trial 4 [--contacts-at 59.0] [--search 'NAME=V;...'] [--npz F]

@@ -1,4 +1,4 @@
-"""Success and contact metrics of a controller on a fixed set of trials (docs/credible_contact.md).
+"""Success and contact metrics of a controller on a fixed set of trials.
 
     python experiments/contact.py [--policy baseline|RUN_DIR] [--sensor VARIANT] [--trials 500]
         [--time-limit 60] [--seed 1] [--first] [--full-time-limit] [--threads N]
@@ -13,7 +13,7 @@ baseline instead of the current one; `--policy RUN_DIR`: a trained policy. `--se
 one thing of every trial's F/T pipeline (`SENSOR_VARIANTS`); `--friction F` gives every trial
 the friction F. `--indices FILE`: only those of the trials (one index per line; the CSV keeps
 their indices). `--csv`: one row per trial, for paired comparisons
-(`experiments/contact_table.py`).
+(`experiments/contact_table.py`). Why these trials: docs/design/credible_contact.md.
 """
 
 from __future__ import annotations
@@ -127,7 +127,8 @@ def main(argv=None) -> None:
         "--grasp-model",
         default="board",
         choices=GRASP_MODELS,
-        help="where the grasp errors go (flange: the numbers before issue 24)",
+        help="where the grasp errors go (flange: the peg tilted in the gripper, the model before "
+        "the board's)",
     )
     p.add_argument(
         "--change",

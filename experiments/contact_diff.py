@@ -22,7 +22,7 @@ from engines_agree import agreement_specs  # experiments/ is on sys.path when ru
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.world.scene import SHAPES
+from mjx_peg.world.constants import SHAPES
 
 
 def snapshots(specs, rows, step: int, config: TrialConfig) -> dict[int, tuple]:

@@ -24,6 +24,17 @@ def load(path) -> dict[str, np.ndarray]:
     return {name: np.asarray(data[name]) for name in data.dtype.names}
 
 
+def paired(run: dict, reference: dict, name: str = "run") -> tuple[int, int, float, float]:
+    """(lost, gained, McNemar p, change in success points) of `run` against `reference`, the
+    same trials."""
+    ok, ref = run["success"] > 0.5, reference["success"] > 0.5
+    if ref.size != ok.size:
+        raise SystemExit(f"{name}: {ok.size} trials, the reference has {ref.size}")
+    lost, gained = int((ref & ~ok).sum()), int((~ref & ok).sum())
+    p = binomtest(lost, lost + gained).pvalue if lost + gained else 1.0
+    return lost, gained, p, 100 * (ok.mean() - ref.mean())
+
+
 def row(name: str, run: dict, reference: dict | None) -> str:
     ok = run["success"] > 0.5
     n = ok.size
@@ -40,12 +51,7 @@ def row(name: str, run: dict, reference: dict | None) -> str:
         f"{insert:.1f} s",
     ]
     if reference is not None:
-        ref = reference["success"] > 0.5
-        if ref.size != n:
-            raise SystemExit(f"{name}: {n} trials, the reference has {ref.size}")
-        lost, gained = int((ref & ~ok).sum()), int((~ref & ok).sum())
-        p = binomtest(lost, lost + gained).pvalue if lost + gained else 1.0
-        change = 100 * (ok.mean() - ref.mean())
+        lost, gained, p, change = paired(run, reference, name)
         cells.append(f"{change:+.1f} ({lost} lost, {gained} gained, p = {p:.2g})")
     return "| " + " | ".join(cells) + " |"
 

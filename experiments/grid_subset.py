@@ -8,7 +8,7 @@ The trials are the evaluation's own (`config.range_specs` of its config.json): t
 `--per-shape` circles and squares (or whatever shapes it has) of each range, on the C engine with
 that evaluation's time limit; ranges keep their quarter. Prints per quarter the success over the
 trials and the mean over ranges of the mean time of the successes (as `eval.py` does), then
-the protective stops, the sensed peak force, chatter and physics steps. docs/spiral_timing.md
+the protective stops, the sensed peak force, chatter and physics steps. docs/design/spiral_timing.md
 used it with `--per-shape 5` (1,000 trials of `paper-small`, 125-210 s on 2 cores).
 """
 

@@ -1,14 +1,15 @@
 """Regenerate every published number of the shipped skill, one job at a time, niced.
 
-When the trial or the spiral skill changes, every number the README and the guides cite from it
-is rerun: `quick` and `transfer` retrained and re-shipped (`experiments/ship_policy.py`, at
-HEAD), the spiral grids under docs/eval/ (`paper-small` at 50 mm, the triangle before and after
-transfer, 25 and 60 mm, the flange model, the baseline), the 500- and 1,500-trial contact sets,
-the paper's skill on the 500, zero error, the sensor and friction variants, the simulated arm,
-vision to action, and the nominal 350-range grid last. `policies/paper` is not retrained
-(`python train.py --preset paper`, ~22 min here, is a decision of its own); its manifest records
-again that it runs the spiral skill, with the spiral's constants as they are, so that
-`--policy paper` runs it without `--skill`, as the README writes its commands.
+When the trial or the spiral skill changes, every number of it on the results page
+(docs/results.md) is rerun: `quick` and `transfer` retrained and re-shipped
+(`experiments/ship_policy.py`, at HEAD), the spiral grids under docs/eval/ (`paper-small` at 50
+mm, the triangle before and after transfer, 25 and 60 mm, the flange model, the baseline), the
+500- and 1,500-trial contact sets, the paper's skill on the 500, zero error, the sensor and
+friction variants, the simulated arm, vision to action, and the nominal 350-range grid last.
+`policies/paper` is not retrained (`python train.py --preset paper`, ~22 min here, is a decision
+of its own); its manifest records again that it runs the spiral skill, with the spiral's
+constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
+its commands.
 
     python experiments/regenerate.py                       # everything, ~110 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
@@ -19,7 +20,9 @@ A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME
 skipped; a grid is removed before its first start only (a stale grid of the skill before would
 otherwise be resumed under the same config), then eval.py resumes it; a training resumes from
 its checkpoints. OUT belongs to one commit (OUT/commit): after a new commit, use a new OUT.
-Logs and CSVs go to OUT (default runs/regenerate), the grids to docs/eval/. The steps' durations
+Logs go to OUT (default runs/regenerate); the grids to docs/eval/, the contact sets, zero error
+and the simulated arm to docs/results/, vision to action to docs/vision/act/. Once every chosen
+step is done, experiments/results_page.py writes docs/results.md from them. The steps' durations
 are those of the last regeneration on this 2-core CPU, for the ETA.
 """
 
@@ -38,6 +41,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EVAL = "docs/eval"
+RESULTS = "docs/results"  # the other shipped results: contact sets, zero error, the arm
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,8 +52,9 @@ class Step:
     fresh: str = ""  # a path removed before the step's first start
 
 
-def steps(out: str, commit: str) -> list[Step]:
-    """Every step, in the order they run (the grids the later ones compare with come first)."""
+def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
+    """Every step, in the order they run (the grids the later ones compare with come first);
+    `results`: where the contact sets, zero error and the arm's runs go."""
     # fmt: off
     py = sys.executable
     train = [
@@ -96,7 +101,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
 
     def contact(name, expect_s, *args):
-        argv = (py, "experiments/contact.py", *args, "--csv", f"{out}/{name}.csv")
+        argv = (py, "experiments/contact.py", *args, "--csv", f"{results}/contact/{name}.csv")
         return Step(name, argv, expect_s)
 
     base = ("--skill", "spiral")
@@ -124,7 +129,7 @@ def steps(out: str, commit: str) -> list[Step]:
     ]
     zero = Step("zero", (py, "experiments/failures.py", *paper, "--linear-mm", "0",
                          "--angular-deg", "0", "--shape", "circle,square,triangle",
-                         "--trials", "60", "--seed", "7"), 6)
+                         "--trials", "60", "--seed", "7", "--out", f"{results}/zero_error.npz"), 6)
     arm = []
     for shape in ("circle", "square"):
         for variant, extra in (("500", ()), ("lag", ("--actuator-lag-ms", "5")),
@@ -132,10 +137,10 @@ def steps(out: str, commit: str) -> list[Step]:
             name = f"arm_{shape}_{variant}"
             argv = (py, "-m", "mjx_peg.robot", *paper, "--shape", shape, "--linear-mm", "4",
                     "--angular-deg", "6", "--trials", "25", "--seed", "0", *extra, "--out",
-                    f"{out}/{name}")
-            arm.append(Step(name, argv, 35, f"{out}/{name}"))
+                    f"{results}/arm/{name}")
+            arm.append(Step(name, argv, 35, f"{results}/arm/{name}"))
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
-                             f"{out}/vision_act"), 310, f"{out}/vision_act")
+                             "docs/vision/act"), 310, "docs/vision/act")
     nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
     return [*train, *grids, *sets, zero, *arm, vision, nominal]
     # fmt: on
@@ -158,12 +163,14 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"
 
 
-def run(chosen: list[Step], out: Path) -> int:
-    """Run the steps not yet done, one at a time, niced; 0, or 1 at the first that fails."""
+def run(chosen: list[Step], out: Path, results: str = RESULTS) -> int:
+    """Run the steps not yet done, one at a time, niced; then write the results page (where
+    `results` is the shipped folder). 0, or 1 at the first step that fails."""
     todo = [s for s in chosen if not (out / f"{s.name}.done").exists()]
     for s in chosen:
         if s not in todo:
             print(f"{s.name}: done before, skipped")
+    (ROOT / results / "contact").mkdir(parents=True, exist_ok=True)
     spent = expected = 0.0
     for k, step in enumerate(todo, 1):
         rest = sum(s.expect_s for s in todo[k - 1 :]) * (spent / expected if expected else 1.0)
@@ -185,9 +192,12 @@ def run(chosen: list[Step], out: Path) -> int:
         (out / f"{step.name}.done").write_text(f"{wall:.1f}\n")
         spent, expected = spent + wall, expected + step.expect_s
         print(f"    done in {_minutes(wall)}", flush=True)
-    print(f"every step done: the grids in {EVAL}/*/summary.md, the rest in {out}/*.log and "
-          f"*.csv (pair them with experiments/contact_table.py)")  # fmt: skip
-    return 0
+    print(f"every step done: the grids in {EVAL}/*/, the rest in {results}/, the logs in {out}/")
+    if results != RESULTS:
+        return 0  # the results page reads the shipped folder only
+    from results_page import main as write_results_page  # this folder's; it imports this module
+
+    return write_results_page([])
 
 
 def main(argv=None) -> int:
@@ -197,10 +207,13 @@ def main(argv=None) -> int:
     p.add_argument("--only", default="", help="comma-separated fnmatch patterns of step names")
     p.add_argument("--skip-nominal", action="store_true", help="not the nominal grid (32 min)")
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
+    p.add_argument("--results", default=RESULTS,
+                   help=f"the contact sets, zero error and the arm's runs (default: {RESULTS}, "
+                   "which the results page reads; elsewhere, the page is not written)")  # fmt: skip
     args = p.parse_args(argv)
     out = args.out if args.out.is_absolute() else Path.cwd() / args.out
     head = _head()
-    chosen = steps(str(out), head)
+    chosen = steps(str(out), head, str(args.results))
     if args.only:
         patterns = [x for x in args.only.split(",") if x]
         chosen = [s for s in chosen if any(fnmatch.fnmatch(s.name, x) for x in patterns)]
@@ -226,7 +239,7 @@ def main(argv=None) -> int:
         return 2
     mark.write_text(head + "\n")
     try:
-        return run(chosen, out)
+        return run(chosen, out, str(args.results))
     except KeyboardInterrupt:
         print("interrupted: rerun the same command to resume", file=sys.stderr)
         return 130

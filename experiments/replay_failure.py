@@ -1,4 +1,4 @@
-"""The replayed failure of docs/credible_contact.md: a trial found again, rerun and plotted.
+"""The replayed failure of docs/design/credible_contact.md: a trial found again, rerun and plotted.
 
     python experiments/replay_failure.py --policy runs/paper_cc --old-policy runs/paper_before_cc \
         --out docs/replay_failure.png

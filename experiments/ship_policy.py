@@ -27,9 +27,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from mjx_peg.cli import write_atomic
 from mjx_peg.learn.config import TrainConfig
-from mjx_peg.outdir import write_json
+from mjx_peg.outdir import write_atomic, write_json
 from mjx_peg.policy.export import MANIFEST_FILE, load_policy
 from mjx_peg.policy.shipped import SHIPPED_DIR
 from mjx_peg.skill.search import SKILLS, named_skill

@@ -279,9 +279,8 @@ def ray_options(args: argparse.Namespace, engine: str, lane_flags: tuple[str, ..
 def resolve_processes(value: int | None, engine: str) -> int | None:
     """--processes as the engine option `processes`: None where the lanes stay in this process.
 
-    Unset: one worker process per core on the mujoco engine (1.14-1.56x over threads on 2 cores,
-    bit-identical results, BENCHMARKS.md "Where the CPU engine's time goes"), none on a single
-    core or on another engine.
+    Unset: one worker process per core on the mujoco engine (faster than threads, the same
+    results: docs/design/worker_processes.md), none on a single core or on another engine.
     """
     if engine != "mujoco":
         if value:

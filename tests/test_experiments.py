@@ -202,10 +202,12 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     assert [line.split(":")[0] for line in only.splitlines()[:-1]] == [
         "arm_circle_125", "arm_square_125"]  # fmt: skip
     # one real step (zero error: 180 trials, ~6 s on two cores), then the rerun skips it
-    out = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path)
+    results = ("--results", tmp_path / "results")  # not the shipped docs/results
+    out = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path, *results)
     assert "[1/1] zero" in out and "done in" in out
     assert "60/60 succeeded" in (tmp_path / "zero.log").read_text()
-    again = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path)
+    assert (tmp_path / "results" / "zero_error.npz").is_file()
+    again = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path, *results)
     assert "zero: done before, skipped" in again and "[1/" not in again
     bad = subprocess.run([sys.executable, ROOT / "experiments/regenerate.py", "--only", "nope"],
                          capture_output=True, text=True, cwd=ROOT)  # fmt: skip

@@ -1,5 +1,4 @@
-"""The resumable output directory (mjx_peg/outdir.py), its atomic writes, the Orbax checkpoints
-(learn/checkpoints.py), and --force on the vision verbs that write a directory."""
+"""mjx_peg/outdir.py: the resumable output directory, --force that moves aside, atomic writes."""
 
 from __future__ import annotations
 
@@ -132,87 +131,30 @@ def test_a_failed_write_leaves_the_old_file_and_no_partial_one(tmp_path):
     assert doc.read_text() == '{"x": [1, 2]}\n'
 
 
-def test_checkpoints_round_trip_into_the_template(tmp_path):
-    from mjx_peg.learn.checkpoints import Checkpoints, has_steps
-
-    tree = {"w": np.arange(6, dtype=np.float32).reshape(2, 3), "step": np.asarray(5, np.int64)}
-    tree["opt"] = (np.ones(2), {"mu": np.zeros((2, 3), np.float32)})
-    template = {
-        "w": np.zeros((2, 3), np.float32),
-        "step": np.zeros((), np.int64),
-        "opt": (np.zeros(2), {"mu": np.ones((2, 3), np.float32)}),
-    }
-    where = tmp_path / "checkpoints"
-    assert not has_steps(where) and not where.exists()
-    with Checkpoints(where, keep=2) as saved:
-        assert saved.latest_step() is None
-        for step in (1, 2, 3):
-            saved.save(step, {**tree, "step": np.asarray(step, np.int64)})
-        assert saved.latest_step() == 3
-        back = saved.restore(template)
-        first_kept = saved.restore(template, step=2)
-    assert has_steps(where) and sorted(p.name for p in where.iterdir() if p.is_dir()) == ["2", "3"]
-    assert int(back["step"]) == 3 and int(first_kept["step"]) == 2
-    np.testing.assert_array_equal(back["w"], tree["w"])
-    np.testing.assert_array_equal(back["opt"][1]["mu"], tree["opt"][1]["mu"])
-    assert back["w"].dtype == np.float32 and isinstance(back["opt"], tuple)
-
-    with Checkpoints(where, keep=2) as saved, pytest.raises(UsageError) as caught:
-        saved.restore({**template, "extra": np.zeros(1)})  # another state than was saved
-    assert f"checkpoint {where.absolute() / '3'} is corrupt or truncated" in str(caught.value)
-    assert "\n" not in str(caught.value)
+def test_an_output_never_overlaps_an_input(tmp_path):
+    policy = tmp_path / "runs" / "quick"
+    for out in (policy, policy / "eval", tmp_path / "runs"):
+        with pytest.raises(UsageError, match="an output never replaces an input") as caught:
+            outdir.check_apart(out, {"--policy": policy})
+        assert "--out" in str(caught.value) and "--policy" in str(caught.value)
+    outdir.check_apart(tmp_path / "eval", {"--policy": policy, "--compare": None})
+    outdir.check_apart(policy, {"--policy": "baseline"})  # a name, not a path
 
 
-def test_the_localizer_training_directory_is_keyed_by_its_config(tmp_path):
-    from mjx_peg.vision.training import CONFIG_FILE, VisionTrainConfig, prepare_out
-
-    out = tmp_path / "model"
-    prepare_out(out, VisionTrainConfig())
-    recorded = (out / CONFIG_FILE).read_text()
-    assert recorded == json.dumps(VisionTrainConfig().to_json(), indent=2) + "\n"
-    (out / "metrics.csv").write_text("step\n")
-    prepare_out(out, VisionTrainConfig())  # the same: resumed, nothing changed
-    assert (out / CONFIG_FILE).read_text() == recorded and (out / "metrics.csv").is_file()
-    other = VisionTrainConfig(seed=3)
-    with pytest.raises(UsageError, match="holds a localizer with a different config .seed: 0"):
-        prepare_out(out, other)
+def test_earlier_results_are_refused_or_moved_aside_never_deleted(tmp_path):
+    picture, table = tmp_path / "a.png", tmp_path / "b.csv"
+    picture.write_bytes(b"png")
+    with pytest.raises(UsageError, match=r"a.png already exists: choose another --out, or pass "
+                       r"--force to move it aside"):  # fmt: skip
+        outdir.refuse_or_move([picture, table], force=False)
     notes = []
-    prepare_out(out, other, force=True, note=notes.append)
-    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("model.replaced-")]
-    assert sorted(p.name for p in moved.iterdir()) == ["metrics.csv", CONFIG_FILE]
-    assert json.loads((out / CONFIG_FILE).read_text())["seed"] == 3 and len(notes) == 1
-
-
-def test_vision_render_resumes_refuses_and_moves_aside_with_force(tmp_path, capsys):
-    from mjx_peg.vision import cli as vision_cli
-
-    out = tmp_path / "split"
-    argv = ["render", "--out", str(out), "--count", "1", "--width", "64", "--height", "64",
-            "--shapes", "square", "--sizes", "50", "--no-progress"]  # fmt: skip
-    assert vision_cli.main(argv) == 0
-    before = _tree(out)
-    assert sorted(before) == ["000000.json", "000000.png", "manifest.json"]
-    capsys.readouterr()
-    assert vision_cli.main([*argv, "--seed", "1"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith("mjx-peg-vision: error: ")
-    assert "holds a vision split with a different config (seed: 0 there, 1 now)" in err
-    assert "--force" in err and _tree(out) == before
-    assert vision_cli.main([*argv, "--seed", "1", "--force"]) == 0
-    assert "--force: moved the earlier vision split in" in capsys.readouterr().err
-    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("split.replaced-")]
-    assert _tree(moved) == before
-    assert json.loads((out / "manifest.json").read_text())["config"]["seed"] == 1
-    # Growing the split resumes it: only the new image is rendered.
-    assert vision_cli.main([*argv[:4], "2", *argv[5:], "--seed", "1"]) == 0
-    assert "rendered 1 images (2 in the split)" in capsys.readouterr().out
-    # Nothing but a split is moved aside.
-    mine = tmp_path / "mine"
-    mine.mkdir()
-    (mine / "notes.txt").write_text("x\n")
-    assert vision_cli.main([*argv[:2], str(mine), *argv[3:], "--force"]) == 2
-    assert "--force replaces only a vision split" in capsys.readouterr().err
-    assert _tree(mine) == {"notes.txt": b"x\n"}
+    outdir.refuse_or_move([picture, table], force=True, note=notes.append)
+    (moved,) = [p for p in tmp_path.iterdir() if p.name.startswith("a.png.replaced-")]
+    assert moved.read_bytes() == b"png" and not picture.exists() and not table.exists()
+    assert notes == [f"--force: moved {picture} aside to {moved}"]
+    picture.write_bytes(b"again")
+    again = outdir.move_aside(picture)  # the same second: a numbered name beside the first
+    assert again != moved and again.read_bytes() == b"again"
 
 
 # -- one writer per output directory (outdir.exclusive) -----------------------------------------

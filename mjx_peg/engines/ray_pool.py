@@ -30,9 +30,8 @@ from mjx_peg.world.task import TrialSpec
 INSTALL = 'pip install -e ".[cluster]"'
 RETRIES = 3  # a lost actor's call is retried this many times (on its restarted actor)
 # The trials of one call go out in 1 to PIECES_PER_ACTOR pieces per actor, as many as keep
-# MIN_PIECE_TRIALS trials each: a piece ends with its slowest trial in a draining batch,
-# so small pieces cost (a training iteration of 256 trials in 8 pieces on 2 actors took 23 %
-# longer than in 2, BENCHMARKS.md "Ray cluster").
+# MIN_PIECE_TRIALS trials each: a piece ends with its slowest trial in a draining batch, so small
+# pieces cost (docs/design/ray_pieces.md).
 PIECES_PER_ACTOR = 4
 MIN_PIECE_TRIALS = 512
 _actors: list = []  # one Lane per CPU of the cluster joined

@@ -1,6 +1,6 @@
 """`python train.py`: learn the 38 controller numbers with Brax PPO (presets in learn/config.py).
 
-    python train.py                                  # quick preset, CPU, under 10 minutes
+    python train.py                                  # the quick preset, on the CPU
     python train.py --preset paper --out runs/paper  # the paper's training conditions
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
     python train.py --preset transfer --init-from paper --out runs/transfer  # policies/paper

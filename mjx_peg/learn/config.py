@@ -2,9 +2,8 @@
 
 Presets (`python train.py --preset NAME`), each with the spiral contact search (`--skill spiral`,
 an extension, skill/search.py; `--skill paper` trains the paper's skill as written):
-- `quick` (default): the paper's training conditions at 44 % of its budget: circle + square at
-  50 mm, errors up to +-8 mm / +-12 deg, a 20 s trial limit, 3,584 trials; ~8 min on a 2-core
-  CPU.
+- `quick` (default, `TrainConfig()`): the paper's training conditions at 44 % of its budget:
+  circle + square at 50 mm, errors up to +-8 mm / +-12 deg, a 20 s trial limit, 3,584 trials.
 - `paper`: the paper's training conditions (section 5.2): circle + square at 50 mm, errors up to
   +-8 mm / +-12 deg, friction 0.2-0.9; 8,192 trials (the paper's curve levels off after ~8,000).
 - `transfer`: re-train a finished run (`--init-from RUN_DIR`) on the unseen triangle, same
@@ -46,16 +45,13 @@ class TrainConfig:
     size_mm: tuple[float, ...] = (50.0,)
     linear_mm: float = 8.0  # +- localization x, y and grasp z error range (the paper's)
     angular_deg: float = 12.0  # +- localization yaw and grasp tilt range (the paper's)
-    # Per training trial. Under credible contact (a filtered, delayed sensor, compliance damping,
-    # a 2 s approach) the baseline inserts in 14.7 s at the median (500 trials, 60 s): the 3-5 s
-    # limits used before left almost every trial a failure and nothing to learn from.
+    # Per training trial: long enough that the baseline's trials end, not all as failures
+    # (docs/design/training_presets.md)
     time_limit_s: float = 20.0
     trials: int = 3584  # budget, rounded up to whole iterations (14 of 256)
     num_envs: int = 256  # trials per iteration (split across devices)
     # One full-batch gradient step per epoch: a 38-dim contextual bandit with a noisy binary
-    # outcome; minibatches of 32-64 trials made each iteration chase noise (KL 0.1-0.2 per
-    # iteration, no progress over 1,500 trials), and on a synthetic bandit of the same shape
-    # full-batch steps reached 0.52 of an optimal 0.55 success where minibatches stalled at 0.47.
+    # outcome, where minibatches chase the noise (docs/design/training_presets.md)
     num_minibatches: int = 1
     update_epochs: int = 4
     learning_rate: float = 1e-3
@@ -228,9 +224,6 @@ PRESETS: dict[str, TrainConfig] = {
         preset="transfer",
         shapes=("triangle",),
         trials=800,
-        # Before credible contact, 20 updates of 40 trials: 10 of 80 left triangle success at
-        # 4 mm / 6 deg at 42.8 % against 40.0 % before transfer (McNemar p = 0.07); 20 of 40
-        # reached 49.6 % (p = 8e-7). Under the credible trial it lowers it (README "Training").
-        num_envs=40,
+        num_envs=40,  # 20 updates of 40 trials (docs/design/training_presets.md)
     ),
 }

@@ -55,7 +55,7 @@ def _save(saved: Checkpoints, state: ppo.TrainingState) -> None:
     saved.save(int(state.iteration), state)
 
 
-def _load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
+def load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingState:
     """Start from another run's networks and observation statistics (fresh optimizer): its last
     Orbax checkpoint, or, where it has none (a shipped policy under policies/), its exported
     policy (`_from_export`)."""
@@ -176,7 +176,7 @@ def train(
     resuming = plan == "resume" and checkpoints.has_steps(run.checkpoint_dir)
     initial = None
     if config.init_from and not resuming:
-        initial = _load_init(config, state)  # read before `out` is touched
+        initial = load_init(config, state)  # read before `out` is touched
     signals.working()  # from here a Ctrl-C unwinds: every finished iteration is kept
     if primary:
         run.prepare(config, plan, note)
@@ -198,7 +198,7 @@ def train(
             run.truncate_tables(int(state.trials))
     else:
         if config.init_from:
-            state = initial if initial is not None else _load_init(config, state)
+            state = initial if initial is not None else load_init(config, state)
         if primary:
             run.start_tables()
     step = ppo.make_iteration(env, config)

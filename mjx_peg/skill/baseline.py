@@ -6,7 +6,7 @@ C[1,3] = C[3,1] = +5.7/k: the tip's compliance centred at the tcp, like a remote
 compliance); 1.8e-3 m/N along x, y, z (the tip yields to rim and wall forces; C_zz sets the press,
 ~40 N on the board top); 0.07 rad/(N m) about x, y and 0.01 about z. Every value lies inside its
 range and off the sigmoid map's saturated edges (params.py), so a policy started here can move
-every number. Why each value, with the measurements behind it: docs/baseline_tuning.md.
+every number. Why each value, with the measurements behind it: docs/design/baseline_tuning.md.
 """
 
 from __future__ import annotations

@@ -29,22 +29,17 @@ loop gain C Lambda K_y / tau the loop closes as
     z^(d-1) (z - a_s)(z - a_c) + L (1 - a_s)(1 - a_c) = 0     (times z when d = 0)
 
 and is stable iff every root lies inside the unit circle (`coupling_loop_radius`,
-`max_stable_loop_gain`; tests/skill/test_stability.py checks them against the simulated loop):
-- without filters or latency (the engines before the sensor pipeline) the root is z = -L: the
-  force alternates every 2 ms step (250 Hz) and grows once L > 1. This is the chatter measured
-  on the first hand-tuned baseline (k_t = 300, C_zz = 1e-3 m/N, Lambda_zz = 5.9-8.8 kg over
-  the workspace: axial L = 1.8-2.6; its worst rotation-translation mode L = 12);
+`max_stable_loop_gain`):
+- without filters or latency the root is z = -L: the force alternates every 2 ms step (250 Hz)
+  and grows once L > 1;
 - the UR5e sensor alone (50 Hz filter, one period of latency) moves the limit to L = 2.1 only;
 - a damping pole a_c lifts it to about (T_c / T) c(d), c = 2 (d = 0, no sensor filter), 1.0
   (d = 1), 0.56-0.62 (d = 2), 0.40-0.45 (d = 3): the loop then acts as an integrator behind a
   delay, and its force still settles within about T_c / L in a rigid contact.
-The learnable vectors reach L = 190 (k_t = k_theta = 1000 with the compliance at its bounds and the
-worst signs of its couplings, over Lambda at the goal across the workspace; the diagonal alone 81;
-the first baseline 12-14, the re-tuned one 84). T_c = 0.75 s keeps every one of them stable for the
-nominal sensor and for the whole training randomization (latency 0-2 periods, filters of 25-100
-Hz): the largest stable L is 376-378 at d <= 1 and 202-221 at d = 2 (tests/skill/test_stability.py).
-Measurements behind T_c (success and chatter against T_c, what the damping costs at the first
-press): docs/compliance_loop.md.
+T_c is chosen so that every learnable vector (k_t, k_theta up to 1000, the compliance within its
+bounds, over Lambda across the workspace) stays stable for the nominal sensor and the whole
+training randomization (latency 0-2 periods, filters of 25-100 Hz); the loop gains, the limits
+and the measurements behind T_c: docs/design/compliance_damping.md.
 
 Written once over the array-API namespace of its inputs, batched over leading dimensions: the
 MJX engine jits and vmaps it, the C MuJoCo engine runs it batched in NumPy, and the robot runtime

@@ -24,7 +24,7 @@ duration T (`DMPConfig.duration`), during which the phase decays from 1 to exp(-
 (`DMPConfig.phase_span`). tau stays 1 s, so the learned gains keep their meaning (K = omega^2);
 T = 2 s (not 1 s) slows the approach so that the peg meets the board gently: the minimum-jerk
 profile of the 120-160 mm descent peaks at 1.9 x travel / T, and the first impact's force grows
-with the speed (docs/compliance_loop.md, "The approach's duration"). The forcing weights w_i
+with the speed (docs/design/compliance_loop.md, "The approach's duration"). The forcing weights w_i
 are not learned: `fit_forcing_weights` fits them once, by locally weighted regression, for
 the reference stiffness `k_ref`.
 
@@ -36,8 +36,9 @@ that spends the fraction c of the movement at a constant speed and blends in and
 minimum-jerk steps (its acceleration continuous and zero at both ends) covers the same travel in
 the same T at a peak speed of 2 / (1 + c) x travel / T instead of 1.875 x: at c = 0.5 the peg
 meets the board 28 % slower (0.124 against 0.173 m/s for a 140 mm descent in 1.5 s, what the
-minimum-jerk profile reaches in 2.1 s) and reaches the success depth 0.08 s later in free space.
-Measured: docs/spiral_timing.md, "The cruise". `cruise` = 0 is the paper's minimum jerk.
+minimum-jerk profile reaches in 2.1 s) and reaches the success depth 0.08 s later in free space
+(what it changes at the touchdown: docs/design/contact_search.md). `cruise` = 0 is the paper's
+minimum jerk.
 
 Everything except the NumPy-only fitting and `rollout` is written over the array-API namespace
 of the inputs and batched over leading dimensions; this module imports neither numpy nor jax.
@@ -97,11 +98,9 @@ def basis_centers(n_basis: int, alpha_s: float, xp=None):
     WIDTH_PER_GAP (0.3) times the distance to the next (smaller) centre, the last one reusing its
     left neighbour's distance: neighbouring Gaussians cross at exp(-25/18) = 0.25 of their peak.
     Narrow bases keep the locally weighted regression accurate (its local fits ignore the
-    neighbours' overlap): with 20 bases over a 1 s movement the fitted path stays within 0.8 % of
-    the travel of the minimum-jerk path, 1.1 % at 0.5 gaps and 2.6 % at one gap (k_ref = 10); over
-    the 2 s movement 20 bases give 1.0 %, 40 (the default: the same density in time) 0.25 %, and
-    the start's backward dip at k = 1000 falls from 1.4 % to 0.5 %. Since the centres are
-    spaced evenly in time the basis is denser in s where s is small, as the phase slows down.
+    neighbours' overlap; the widths and counts measured: docs/design/dmp_basis.md). Since the
+    centres are spaced evenly in time the basis is denser in s where s is small, as the phase
+    slows down.
     Returns arrays of `xp` (default NumPy, imported lazily).
     """
     xp = importlib.import_module("numpy") if xp is None else xp

@@ -9,7 +9,7 @@ section 3.3: positive gains, compliance within physical ranges), for every input
   sigmoid map has in the middle of its range, approaching the range's edges like tanh.
 - `controller_from_action` (the sigmoid map): action 0 is the middle of each range; a centre
   near an edge sits where the sigmoid is flat (why the centred map exists:
-  docs/baseline_tuning.md, "The action maps").
+  docs/design/baseline_tuning.md, "The action maps").
 
 Order of the 38 numbers, in both the action and the physical vector:
 
@@ -226,7 +226,7 @@ def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT
     u = u0 + (1 - u0) tanh(s a / (1 - u0)) for a >= 0, u0 + u0 tanh(s a / u0) for a < 0.
     The sigmoid map puts the centre of its sensitivity in the middle of each range; a prior near
     an edge (k = 900 of [10, 1000] sits at sigmoid 0.977) then moves ~20 times less for the same
-    exploration, and PPO started there barely moves it (docs/credible_contact.md).
+    exploration, and PPO started there barely moves it (docs/design/credible_contact.md).
     """
     xp = namespace_of(action)
     _split_action(action, xp)  # checks the last axis (38)

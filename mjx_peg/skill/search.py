@@ -1,13 +1,11 @@
-"""The contact search: how the skill frees a peg resting on the board top and turns it with a
-tilted or turned hole, then pushes it through (an extension).
+"""The contact search: how the skill frees a peg resting on the board top, turns it with a tilted
+or turned hole, then pushes it through (an extension of the paper's skill).
 
-The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10).
-A peg that lands on the rim stays there: static friction holds its tip until the lateral
-tracking force passes mu N, i.e. until a lateral goal offset s passes mu N (1 / K_e + C_xx)
-(docs/rim_escape.md: 16-72 mm at the ~40 N press that C_zz and the goal's depth make). Six
-elements, each off by default, change that, the first five while the peg rests on something,
-the sixth once it is deep in the hole; a budget ends the spiral. In the goal frame (the tool's
-orientation at the goal: z points down, into the hole):
+The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10); a
+peg on the rim stays there, held by static friction until the lateral goal offset passes
+mu N (1 / K_e + C_xx). Six elements change that, each off by default (the defaults are the
+paper's skill): the first five while the peg rests on something, the sixth once it is deep in
+the hole; a budget ends the spiral. In the goal frame (z points down, into the hole):
 
     gate        g = clip((N - f_on) / (f_full - f_on), 0, 1),  N = -F_z  (the board pushing up)
     press       ydd_z <= a_p                         the axial command, and so the press
@@ -29,94 +27,36 @@ orientation at the goal: z points down, into the hole):
                 H the estimated entrance over the goal: the peg withdrawn h_w above it
 
 The centring is the paper's moment-to-shift coupling (C[0,4], C[1,3]) divided by the axial
-force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from
-the tcp) feels the moment m = r x (-N e_z) = N (-r_y, r_x, 0), so r = (m_y, -m_x) / N; the hole
-lies on the side of the face that does not touch, and the goal moves by -k_cop r. The bounded
-press and the stiffer tip lower the friction threshold; measured, both cost more than they free
-(docs/rim_escape.md), so the `search` ablation (experiments/ablations.py) is the centring alone.
+force: a face pressed on the board top by N at its centre of pressure r (goal frame x, y from the
+tcp) feels the moment m = r x (-N e_z) = N (-r_y, r_x, 0), so r = (m_y, -m_x) / N; the hole lies
+on the side of the face that does not touch, and the goal moves by -k_cop r. It points the right
+way within d* = sqrt(R_h^2 - R_p^2) of the hole's axis.
 
-The alignment is an integral term beside the rotational compliance (C[3,3], C[4,4], C[5,5]):
-the goal's rotation a follows the moment at the tcp while the peg is pressed, and keeps what it
-found. The goal's orientation is the estimated hole's. A hole tilted by theta (the paper's grasp
-error, up to 12 deg) holds the peg theta off its goal, and the compliance alone asks for a
-moment theta / C_rr to do that: 3 N m at the baseline's 0.07 rad/(N m), which the hole's walls
-give only through normal forces of ~75 N at 40 mm depth; the peg creeps through the hole at
-~1 mm/s against their friction. A hole turned by the localization's yaw error (up to 12 deg as
-well) keeps a square or a triangle out until the peg turns with it, which C[5,5] (at most
-0.1 rad/(N m)) does only against 2 N m; the peg wedges on the hole's edge. With the integral the
-moment falls to zero as a approaches the hole's pose. The tilt (a_x, a_y) waits until the tcp is
-d_a (20 mm) below the hole's estimated entrance, 12 mm inside the hole at the paper's largest
-height error (8 mm): nearer the entrance a peg that rests over the hole's edge feels a moment
-that tilts it further into the hole, and the integral wedges it (on docs/tilted_hole.md's 500
-trials, d_a = 10 mm lost 5 of the baseline's successes, 20 mm none). The yaw (a_z) starts with the
-press: a polygon enters only once it is turned. Measured (docs/tilted_hole.md): on 60 trials
-at +-2 mm / +-12 deg, 58.3 % -> 83.3 % (the tilt alone 71.7 %), the median time 7.6 s -> 3.8 s,
-no peg left wedged of 14; on the 500 trials at +-4 mm / +-6 deg, 83.0 % -> 84.6 % and the time
-p90 18.4 s -> 8.3 s. The `align` ablation is the centring and the alignment.
+The alignment is an integral term beside the rotational compliance (C[3,3], C[4,4], C[5,5]): the
+goal's rotation a follows the moment at the tcp while the peg is pressed, and keeps what it
+found, so the moment falls to zero as a reaches the hole's pose (a tilted hole, the paper's grasp
+error; a turned one, its yaw error). The tilt waits until the tcp is d_a below the estimated
+entrance; the yaw starts with the press.
 
-The spiral frees the pegs that the centring cannot: beyond d* = sqrt(R_h^2 - R_p^2) (6.2 mm at
-50 mm) a peg rests on a chord of its face on the hole's side, and the centre of pressure no
-longer points away from the hole (docs/rim_escape.md), so the centring walks it away, to ~30 mm.
-After t_w (0.3 s) of resting, the goal runs an Archimedean spiral (pitch p = 10 mm, under the
-capture width 2 d*; out to R = 25 mm, past the 8 mm of localization error and the tip's drift;
-v = 30 mm/s round its turns, then half a turn at R and back in between its outward turns, and
-out again: `spiral_path`) about the hole's estimated axis, and the friction threshold falls
-below the spiral's own amplitude: the press halves (kappa = 2, ~20 N), the tip follows the goal
-at the arm's own stiffness (c_s = 0: 1.7 mm of lag at mu 0.5), and the centring keeps a quarter
-of its gain (k_s = 0.25), enough to pull in a peg within d*. The spiral stops as soon as the tcp
-drops e = 1.5 mm below its resting height (a height that follows the tcp down over T_h = 1 s,
-so a tilted board does not stop it): the peg has found the hole. Measured (docs/rim_escape.md):
-of the 51 trials that `policies/paper` with the alignment fails on the 500 trials, the spiral
-inserts 42 within 30 s and loses none of 20 of its successes. Its return where it used to
-circle at R frees the pegs whose hole is narrower than the pitch's gaps: on 300 trials at
-+-8 mm / +-6 deg (seed 1, `policies/paper`), triangles 65.7 -> 73.7 % (30 gained, 6 lost,
-McNemar p = 7e-5), 25 mm circles and squares at +-4 mm / +-6 deg 90.3 -> 93.0 % (12 / 4,
-p = 0.08); at 50 mm it changes little (docs/spiral_timing.md, "The return"). Its timing (t_w,
-T_r, v; from 1 s, 1 s, 20 mm/s) is the fastest that kept the success on a 1,000-trial subset of
-`paper-small` (docs/spiral_timing.md). `SKILLS["spiral"]` is the alignment and the spiral, and
-moves faster: its DMP's movement lasts T = 1.3 s instead of the trial's 2 s (`movement_s`) and
-cruises half of it at a constant speed instead of the minimum-jerk profile (`movement_cruise`,
-`dmp.cruise_profile`). With the spiral to free what lands on the rim, the faster approach
-inserts as many pegs; the cruise meets the board 28 % slower than a minimum-jerk profile of the
-same T, so the touchdown stays as gentle as the minimum-jerk 1.75-1.8 s (the sensed peak's p99
-131 N on a 1,000-trial subset of `paper-small`, against 145 N for the minimum-jerk 1.5 s and
-114 N for 2 s; with an unfiltered F/T sensor 7 of 500 trials protective-stop, against 37 at
-1.5 s; docs/spiral_timing.md, "The cruise").
+The spiral frees the pegs beyond d*, which the centring walks away: after t_w of resting, the
+goal runs an Archimedean spiral (pitch p, under the capture width 2 d*, out to R and back in
+between its outward turns, at speed v: `spiral_path`) about the estimated axis, with a lighter
+press (kappa), the tip at the arm's own stiffness (c_s) and part of the centring's gain (k_s). It
+stops once the tcp drops e below its resting height (a height that follows the tcp down over
+T_h, so that a tilted board does not stop it): the peg has found the hole.
 
-The insertion press pushes a peg through the hole once it is in. The axial compliance C_zz that
-keeps the touchdown and the rim's friction low also sets how hard a peg in the hole is pushed:
-the goal lies at the table top, and the press is about (g_z - y_z) / (1 / K_e + C_zz), ~20 N
-40 mm above the table, falling as the peg goes down. A peg that entered a tilted hole slides
-against its walls' friction at that press, 10-20 mm/s; in `paper-small`'s Q2 (tilts up to
-12 deg) that is most of the time to insert (a trial at the median: 0.6 s to the entrance, 0.5 s
-to turn with the hole, 1.7 s for the last 27 mm). Past the depth d_i (35 mm) below the
-estimated entrance the peg is in the hole whatever the height error (at most 8 mm in the
-paper's grids, 9.6 mm at 60 mm) and has turned with it (the alignment starts at d_a, 15-20 mm);
-over the next d_r (15 mm) the axial compliance falls to kappa_i C_zz (0.5). Earlier or stiffer,
-the press wedges pegs not yet turned with the hole into protective stops. Measured on the
-1,000-trial subset of `paper-small` (`policies/paper`; docs/spiral_timing.md, "The insertion
-press"): the same success per quarter (99.6 / 96.8 / 97.2 / 96.8 %) in 1.57 / 2.90 / 3.17 /
-4.43 s against 1.86 / 3.66 / 3.84 / 5.33 s, 3 protective stops as before, the sensed peak's p99
-132 N (131). `SKILLS["spiral"]` has it, and starts the alignment's tilt at d_a = 15 mm: on the
-same subset Q2 and Q4 take 2.75 / 4.27 s (2.90 / 4.43 s at 20 mm) and one trial of 1,000 is
-lost; at 12 mm 2.70 / 4.19 s and 4 lost (docs/spiral_timing.md, "The alignment's depth"). Where
-the peg is shallower than the tcp's depth below the estimated entrance says (the flange model's
-tilted peg, 60 mm's height errors of up to 9.6 mm), the earlier tilt wedges more pegs.
+The insertion press pushes a peg through the hole once it is in: the axial compliance C_zz that
+keeps the touchdown gentle also sets the press, about (g_z - y_z) / (1 / K_e + C_zz), falling as
+the peg goes down; past d_i below the estimated entrance it blends to kappa_i C_zz over d_r.
 
-The search's budget ends a search that has not found the hole, as the spiral-search functions
-of force-controlled arms end at their largest radius or time: once the peg has rested tau_b
-(`search_budget`, resting time: `spiral_state`'s tau) the spiral stops where it is, the resting
-time runs on with the clock, and over T_w the goal's axial offset blends to h_w above the hole's
-estimated entrance, lifting the peg clear of the board; the trial then fails "above the board".
-A peg dragged round the spiral on the board top for the rest of the trial wears the rim and the
-peg, and the contact hops under it at 60-100 Hz (docs/rim_chatter.md). tau_b = 45 s leaves the
-withdrawal time within the paper's 60 s trial (the resting time lags the clock by the approach
-and the gate) and keeps every success: on `paper-small` 50 mm (`policies/paper`) the same 4,865
-trials insert at the same times (the last at 43.6 s), 113 of the 135 failures are withdrawn, and
-the failures' largest chatter falls from 7.4 to 4.2 N. Training trials (20 s) never reach it.
+The budget ends a search that has not found the hole, as the spiral searches of force-controlled
+arms end at their largest radius or time: once the peg has rested tau_b the spiral stops where it
+is, the resting time runs on with the clock, and over T_w the goal's axial offset blends to h_w
+above the estimated entrance, lifting the peg clear of the board.
 
-Written over the array-API namespace of the inputs, batched over leading dimensions, like the
-rest of `skill/`; it imports neither numpy nor jax.
+Why each element is there and how its constants were chosen, with the measurements:
+docs/design/contact_search.md. Written over the array-API namespace of the inputs, batched over
+leading dimensions, like the rest of `skill/`; it imports neither numpy nor jax.
 """
 
 from __future__ import annotations
@@ -378,7 +318,7 @@ def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, g
                      dt: float):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
-    `align_max_yaw`, where set: docs/tilted_hole.md, "The yaw during the spiral"); from the
+    `align_max_yaw`, where set: docs/design/tilted_hole.md, "The yaw during the spiral"); from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
     force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
     (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a). Zero rate:

@@ -29,8 +29,8 @@ UR5e built-in F/T sensor (the defaults of `SensorConfig`):
 - Users: the built-in sensors are noisy and drift (a CB-series UR5's internal force estimate had
   a 3.6 N standard deviation against 0.6 N for an external Robotiq FT 300, UR forum "Internal
   Force Sensor properties"; a UR e-Series wrench did not return to zero after an 80 N load,
-  Universal_Robots_ROS_Driver issue #670), and integrated sensors need filtering that adds
-  latency (Bota Systems, "Choosing the right force torque sensor").
+  github.com/UniversalRobots/Universal_Robots_ROS_Driver/issues/670), and integrated sensors
+  need filtering that adds latency (Bota Systems, "Choosing the right force torque sensor").
 - Deployments filter: FORGE (Noseworthy et al. 2024, Isaac Lab's `forge_env_cfg.py`) smooths the
   force with an EMA of factor 0.25 per step and trains with 1 N of force noise.
 

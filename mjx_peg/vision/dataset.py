@@ -72,7 +72,9 @@ class Renderer:
         self.width, self.height = int(width), int(height)
         self._scenes: dict = {}
 
-    def _scene(self, shape: str, size: float):
+    def scene(self, shape: str, size: float):
+        """(model, data, mujoco.Renderer) of the vision scene of (shape, size in m), made on first
+        use and kept until `close`; a caller may edit the model (a test marks a site in it)."""
         key = (shape, round(float(size), 6))
         if key not in self._scenes:
             import mujoco
@@ -86,7 +88,7 @@ class Renderer:
 
     def raw(self, board: dict, view: dict) -> np.ndarray:
         """(H, W, 3) uint8 rendered frame of `board` under `view`, before the sensor."""
-        model, data, renderer = self._scene(board["shape"], board["size"])
+        model, data, renderer = self.scene(board["shape"], board["size"])
         apply_view(model, data, board, view)
         renderer.update_scene(data, camera="birdseye")
         return np.array(renderer.render(), dtype=np.uint8)

@@ -337,8 +337,9 @@ def hole_frame(specs: TrialSpec) -> tuple[np.ndarray, np.ndarray]:
     return pos, matrix_from_quat(quat)[..., :, 2]
 
 
-def _candidates(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
-    """n unfiltered trials (everything but the IK)."""
+def candidate_trials(config: TaskConfig, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+    """n trials drawn before the rejection of ill-conditioned ones: every TrialSpec field but the
+    start configuration q0, and the start pose of the tcp (`tcp0_pos`, `tcp0_rot`) it solves."""
     lin, ang = config.linear_error, config.angular_error
     combo = rng.integers(len(config.shapes) * len(config.sizes), size=n)
     shape_ids = np.array([SHAPES.index(s) for s in config.shapes], dtype=np.int32)
@@ -461,7 +462,7 @@ def sample_trials(
                 "shrink the workspace or relax max_condition"
             )
         n = (batch - have) + (batch - have) // 8 + 16
-        cand = _candidates(config, rng, n)
+        cand = candidate_trials(config, rng, n)
         q0, ok0 = feasible_configuration(cand["tcp0_pos"], cand["tcp0_rot"], config.max_condition)
         _, ok_goal = feasible_configuration(
             *goal_pose(cand["hole_est_pos"], cand["hole_est_yaw"]), config.max_condition
@@ -472,7 +473,7 @@ def sample_trials(
         have += keep.size
         drawn += n
     if not accepted:
-        accepted.append({n: v[:0] for n, v in _candidates(config, rng, 0).items()})
+        accepted.append({n: v[:0] for n, v in candidate_trials(config, rng, 0).items()})
         accepted[0]["q0"] = np.zeros((0, 6))
     arrays = {name: np.concatenate([a[name] for a in accepted]) for name in accepted[0]}
     # The sensor's draws come from a child stream: the trials of a seed stay what they were

@@ -118,7 +118,7 @@ def test_stiffness_from_compliance():
         P.stiffness_from_compliance(stiff_z)
 
 
-# The centred map (issue 18): action 0 is the baseline, sensitive in both directions there.
+# The centred map: action 0 is the baseline, sensitive in both directions there.
 
 
 def _centre():

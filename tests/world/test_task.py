@@ -141,7 +141,7 @@ def test_rejection_keeps_only_well_conditioned_trials():
     config = TaskConfig(
         max_condition=13.0, linear_error=0.05, start_xy_jitter=0.1, start_tilt_jitter=np.pi / 4
     )
-    cand = task._candidates(config, np.random.default_rng(0), 20_000)
+    cand = task.candidate_trials(config, np.random.default_rng(0), 20_000)
     _, ok0 = task.feasible_configuration(cand["tcp0_pos"], cand["tcp0_rot"], config.max_condition)
     goal = task.goal_pose(cand["hole_est_pos"], cand["hole_est_yaw"])
     _, ok_goal = task.feasible_configuration(*goal, config.max_condition)

@@ -1,0 +1,176 @@
+"""learn/trainer.py: a run directory holds what it promises, resumes exactly after SIGKILL, starts
+from another run's policy, and runs on two devices or two processes."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_peg.learn.config import TrainConfig
+from mjx_peg.learn.curves import read_table
+from mjx_peg.learn.ppo import deterministic_actions
+from mjx_peg.learn.trainer import load_state
+from mjx_peg.policy import observation
+from mjx_peg.policy.export import load_policy
+from mjx_peg.skill.search import SKILLS, NamedSkill
+
+ROOT = Path(__file__).resolve().parents[2]
+
+DETERMINISTIC = ("iteration", "trials", "mean_return", "success_rate", "policy_loss", "kl")
+
+
+def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
+    out, summary = tiny_run
+    assert summary.finished and summary.trials == 48
+    for name in ("config.json", "metrics.csv", "trials.csv", "policy.npz", "manifest.json"):
+        assert (out / name).is_file(), name
+    assert (out / "training_curve.png").stat().st_size > 10_000
+    config = json.loads((out / "config.json").read_text())
+    assert TrainConfig.from_json(config) == tiny_config
+    spiral = NamedSkill("spiral", SKILLS["spiral"])  # the run's skill, every constant recorded
+    assert config["skill_constants"] == spiral.record()["constants"]
+    metrics = read_table(out / "metrics.csv")
+    assert metrics["trials"] == [16.0, 32.0, 48.0]
+    assert metrics["settled_rate"] == [0.0, 0.0, 0.0]  # 0.6 s trials cannot settle
+
+    assert read_table(out / "trials.csv")["trial"] == list(range(48))
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
+    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
+    with np.load(out / "policy.npz", allow_pickle=False) as npz:
+        assert all(npz[k].dtype == np.float32 for k in npz.files)
+
+
+def test_init_from_a_shipped_policy_starts_at_its_actions():
+    """A run without checkpoints (policies/paper) starts from its exported mean path and
+    observation statistics, counted as its trials; the exploration std and the critic fresh."""
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.learn.trainer import load_init
+
+    config = cli.resolve_config(
+        cli.parser().parse_args(["--preset", "transfer", "--init-from", "paper"])
+    )
+    assert Path(config.init_from).resolve() == ROOT / "policies" / "paper"
+    template = init_state(config, make_networks(config))
+    state = load_init(config, template)
+    shipped = load_policy("paper")
+    obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
+    action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
+    assert np.max(np.abs(action - shipped.act(obs))) < 1e-5
+    norm = state.normalizer_params
+    assert int(norm.count.lo) == shipped.manifest["trials"] == 8192
+    critic_mean = np.asarray(norm.mean["privileged_state"])
+    np.testing.assert_allclose(critic_mean[:8], shipped.obs_mean, rtol=1e-6)
+    np.testing.assert_array_equal(critic_mean[8:], 0.0)
+    np.testing.assert_allclose(np.asarray(norm.std["privileged_state"])[8:], 1.0)
+    fresh, loaded = template.params, state.params
+    assert jax.tree.all(jax.tree.map(np.array_equal, fresh.value, loaded.value))
+    np.testing.assert_array_equal(
+        fresh.policy["params"]["std_logparam"]["log_value"],
+        loaded.policy["params"]["std_logparam"]["log_value"],
+    )
+
+
+@pytest.mark.slow
+def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path, tiny_args, train_py):
+    reference, _ = tiny_run
+    out = tmp_path / "killed"
+    args = ["--out", str(out), "--checkpoint-every", "0", "--no-progress", *tiny_args]
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    proc = subprocess.Popen(
+        [sys.executable, "train.py", *args],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 300
+    while not (out / "checkpoints" / "1").is_dir() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert not (out / "policy.npz").exists(), "the run finished before it was killed"
+    done = train_py(args)
+    assert done.returncode == 0, done.stderr
+    a, b = read_table(reference / "metrics.csv"), read_table(out / "metrics.csv")
+    for column in DETERMINISTIC:
+        assert a[column] == b[column], column
+    assert (reference / "trials.csv").read_text() == (out / "trials.csv").read_text()
+    _, s1 = load_state(reference)
+    _, s2 = load_state(out)
+    for x, y in zip(
+        jax.tree.leaves(s1.optimizer_state), jax.tree.leaves(s2.optimizer_state), strict=True
+    ):
+        np.testing.assert_array_equal(x, y)
+    for x, y in zip(jax.tree.leaves(s1.params), jax.tree.leaves(s2.params), strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.slow
+def test_two_forced_host_devices(tmp_path):
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    code = (
+        "import jax; from mjx_peg.learn.config import TrainConfig;"
+        "from mjx_peg.learn.trainer import train;"
+        "assert jax.local_device_count() == 2;"
+        f"s = train(TrainConfig(trials=32, num_envs=16, time_limit_s=0.6), {str(tmp_path)!r},"
+        " progress=False); print(s.trials)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, env=env
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().endswith("32")
+    returns = read_table(tmp_path / "trials.csv")["return"]
+    assert len(returns) == 32
+    # the two devices drew different trials
+    assert returns[:8] != returns[8:16]
+
+
+@pytest.mark.slow
+def test_distributed_two_local_processes(tmp_path, tiny_args):
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "dist"
+    procs = []
+    for i in range(2):
+        env = {
+            **os.environ,
+            "JAX_PLATFORMS": "cpu",
+            "JAX_COORDINATOR_ADDRESS": f"localhost:{port}",
+            "JAX_NUM_PROCESSES": "2",
+            "JAX_PROCESS_ID": str(i),
+        }
+        args = ["--distributed", "--out", str(out), "--no-progress", *tiny_args[:2]]
+        args += ["--num-envs", "16", "--time-limit", "0.6"]
+        procs.append(
+            subprocess.Popen(
+                [sys.executable, "train.py", *args],
+                cwd=ROOT,
+                env=env,
+                text=True,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+            )
+        )
+    outputs = [p.communicate(timeout=600) for p in procs]
+    for p, (_, stderr) in zip(procs, outputs, strict=True):
+        assert p.returncode == 0, stderr[-2000:]
+    # both processes took part in every iteration and agree on the result
+    assert outputs[0][0].splitlines()[-1] == outputs[1][0].splitlines()[-1]
+    assert read_table(out / "metrics.csv")["trials"] == [16.0, 32.0, 48.0]
+    assert len(read_table(out / "trials.csv")["trial"]) == 48
+    assert load_policy(out).manifest["finished"]
