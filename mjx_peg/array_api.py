@@ -53,7 +53,10 @@ def ring_write(ring, index, value, mask):
 
 def tree_map(f, tree, *rest):
     """f over the leaves of NamedTuples of arrays (nested), like `jax.tree.map` for this
-    package's state tuples without importing JAX; `rest` are trees of the same structure."""
+    package's state tuples without importing JAX; `rest` are trees of the same structure. None
+    is an empty subtree, as in JAX (an optional field left out)."""
+    if tree is None:
+        return None
     if isinstance(tree, tuple) and hasattr(tree, "_fields"):
         return type(tree)(*(tree_map(f, *parts) for parts in zip(tree, *rest, strict=True)))
     return f(tree, *rest)

@@ -185,6 +185,17 @@ LINEAR_MM = number(0.0, 50.0, "mm")  # +- localization x, y and grasp z error ra
 ANGULAR_DEG = number(0.0, 45.0, "deg")  # +- localization yaw and grasp tilt range
 TIME_LIMIT_S = number(0.01, 600.0, "s")  # simulated time per trial (the paper's: 60 s)
 SEED = integer(0, 2**32 - 1)  # NumPy's and JAX's seeds
+
+
+def SEED_LIST(value: str) -> tuple[int, ...]:  # noqa: N802 (a flag type, like SEED)
+    """Distinct seeds separated by commas, e.g. 0,1,2 (each a SEED)."""
+    seeds = tuple(SEED(part.strip()) for part in str(value).split(","))
+    if len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"must name distinct seeds, got {_shown(value)}")
+    return seeds
+
+
+SEED_LIST.range_text = "seeds separated by commas, e.g. 0,1,2"
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
 THREADS = integer(1, cores(), "the cores this process may use")  # the CPU engine's lanes
 

@@ -9,11 +9,15 @@ finds here what it meant:
   one from before the board error model, put the grasp errors on the peg in the flange;
 - per-range results from before early ending have no `settled` (no trial had settled);
 - training runs (config.json) from before the centred action map used the sigmoid map, from
-  before the board error model the flange one, from before the skills the paper's skill; exported
-  manifests without a "map" likewise; a config that leaves out the error ranges or the budget
+  before the board error model the flange one, from before the skills the paper's skill, from
+  before the geometry observation the `names` one; exported manifests without a "map" or an
+  observation "layout" likewise; a config that leaves out the error ranges or the budget
   meant TrainConfig's defaults before they became the `quick` preset's (+-4 mm / +-6 deg, 12,288
-  trials);
-- trial specs from before the board error model have a flat board at its nominal height;
+  trials); runs from before the learned search constants learned the 38 alone, updated the raw
+  action at a fixed rate of 1e-3 and ran Brax's running observation statistics, and those from
+  before the geometry observation read the part by the names of the paper's three shapes;
+- trial specs from before the board error model have a flat board at its nominal height, those
+  from before the hole's clearance was a parameter the paper's clearance of their shape;
 - evaluations, training runs and manifests that name a skill without its constants ran that
   skill's: one that no CLI offers now (`search`, `align`) with its constants as they were
   (`FORMER_SKILLS`), any other with its constants as they are today (`skill.search.SKILLS`);
@@ -43,8 +47,18 @@ TRAIN_CONFIG = {
     "linear_mm": 4.0,
     "angular_deg": 6.0,
     "trials": 12288,
+    "learn_search": False,
+    "learning_rate": 1e-3,
+    "normalized_actions": False,
+    "kl_target": 0.0,
+    "obs_statistics": "running",
+    "observation": "names",
 }
 MANIFEST_ACTION_MAP = "sigmoid"
+MANIFEST_OBSERVATION = "names"  # the observation layout of manifests that name none
+# The hole's clearance (hole size / peg size) of trial specs that predate it: the paper's fits of
+# the shapes there were then (shape ids 0-2: circle 1.03 D, square and triangle 1.08 L).
+SPEC_HOLE_SCALE = (1.03, 1.08, 1.08)
 
 # SkillConfig's fields as they were at commit 0e346f7, the last that offered `search` and
 # `align` on the CLIs (skill/search.py's SKILLS then)
@@ -113,9 +127,16 @@ def range_results(arrays: dict) -> dict:
 
 
 def spec_arrays(arrays: Mapping):
-    """TrialSpec arrays with the board's height and tilt (zero) if they predate them."""
-    if "board_height" in arrays or "shape_id" not in arrays:
+    """TrialSpec arrays with the fields they predate: the board's height and tilt (zero), the
+    hole's clearance (the paper's fit of each shape, `SPEC_HOLE_SCALE`)."""
+    if "shape_id" not in arrays:
         return arrays
     np = importlib.import_module("numpy")
     n = np.shape(arrays["shape_id"])[0]
-    return {**arrays, "board_height": np.zeros(n), "board_tilt": np.zeros((n, 2))}
+    filled = dict(arrays)
+    if "board_height" not in arrays:
+        filled.update(board_height=np.zeros(n), board_tilt=np.zeros((n, 2)))
+    if "hole_scale" not in arrays:
+        shape_id = np.asarray(arrays["shape_id"], dtype=np.int64)
+        filled["hole_scale"] = np.asarray(SPEC_HOLE_SCALE, dtype=np.float64)[shape_id]
+    return filled

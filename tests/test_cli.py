@@ -24,6 +24,7 @@ from mjx_peg.evaluation import config as eval_config
 from mjx_peg.learn import cli as train_cli
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy.export import save_policy
+from mjx_peg.policy.observation import LAYOUTS
 from mjx_peg.robot import cli as robot_cli
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.vision import cli as vision_cli
@@ -43,9 +44,10 @@ def _tree(path: Path) -> dict[str, bytes]:
 def _fake_run(path: Path, **config) -> Path:
     """A finished run directory: config.json, policy.npz + manifest.json (no checkpoint)."""
     rng = np.random.default_rng(0)
-    layers = [(0.1 * rng.normal(size=(8, 16)), np.zeros(16)), (np.zeros((16, 38)), np.zeros(38))]
     conf = TrainConfig(**config)
-    save_policy(path, layers, np.zeros(8), np.ones(8), conf.to_json(), extra={"finished": True})
+    n = len(LAYOUTS[conf.observation])  # the numbers its observation layout reads
+    layers = [(0.1 * rng.normal(size=(n, 16)), np.zeros(16)), (np.zeros((16, 38)), np.zeros(38))]
+    save_policy(path, layers, np.zeros(n), np.ones(n), conf.to_json(), extra={"finished": True})
     (path / "config.json").write_text(conf.dumps())
     return path
 

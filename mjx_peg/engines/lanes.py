@@ -42,6 +42,7 @@ from mjx_peg.errors import UsageError
 from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import for_part
 from mjx_peg.world import mujoco_log
 from mjx_peg.world.task import TrialSpec, goal_pose, hole_frame
 
@@ -188,12 +189,15 @@ class Lane:
         y0 = start_state(goal_pos[0], goal_rot[0], d.site_xpos[tcp].copy(),
                          d.site_xmat[tcp].reshape(3, 3).copy())  # fmt: skip
         p = self.params
+        search = None if p.search is None else tree_map(lambda v: v[index], p.search)
+        search = for_part(cfg.search, search, cfg.movement.duration, np.asarray(s.size[index]))
         skill = make_skill(
             ControllerParams(p.k_t[index], p.k_theta[index], p.compliance[index]),
             goal_pos[0],
             goal_rot[0],
             y0,
             cfg.dmp.tau,
+            search,
         )
         consts = period.make_consts(
             skill,

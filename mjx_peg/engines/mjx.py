@@ -33,6 +33,7 @@ from mjx_peg.engines.trial import (
 from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import Basis, make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import SearchValues, for_part
 from mjx_peg.world import constants, scene
 from mjx_peg.world.task import TrialSpec, board_pose, goal_pose, hole_frame
 
@@ -87,11 +88,16 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
         k_t=params.k_t,
         k_theta=params.k_theta,
         compliance=params.compliance,
+        **(
+            {}
+            if params.search is None
+            else {f"search_{k}": v for k, v in params.search._asdict().items()}
+        ),  # fmt: skip
     )
 
 
 class _Program:
-    """The compiled trial loop for one scene (shape, size)."""
+    """The compiled trial loop for one scene (a part: shape, size, hole scale)."""
 
     def __init__(self, model: mujoco.MjModel, config: TrialConfig, batch: int, recycle_every: int):
         self.ids = ids = scene.scene_ids(model)
@@ -154,7 +160,11 @@ class _Program:
         meas = self._measure(m, d)
         y0 = start_state(inp["goal_pos"], inp["goal_rot"], meas.tcp_pos, meas.tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
-        skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau)
+        search = None
+        if "search_movement_s" in inp:
+            search = SearchValues(*(inp[f"search_{k}"] for k in SearchValues._fields))
+        search = for_part(cfg.search, search, cfg.movement.duration, inp["size"])
+        skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau, search)
         sp = sensor.SensorParams(*(inp[f"sensor_{name}"] for name in sensor.SensorParams._fields))
         consts = period.make_consts(skill, sp, meas.ft, inp["hole_origin"], inp["hole_axis"],
                                     inp["size"], meas.tip_pos)  # fmt: skip
@@ -239,8 +249,8 @@ class _Program:
 
 
 @functools.lru_cache(maxsize=16)
-def _program(shape: str, size: float, config: TrialConfig, batch: int, recycle_every: int):
-    return _Program(scene.load_model(shape, size), config, batch, recycle_every)
+def _program(part: tuple[str, float, float], config: TrialConfig, batch: int, recycle_every: int):
+    return _Program(scene.load_model(*part), config, batch, recycle_every)
 
 
 def run_on_device(
@@ -254,15 +264,15 @@ def run_on_device(
     """Run every trial of `specs` with per-trial `params` on MJX, grouped by scene."""
     n = len(specs)
     inputs_all = _slot_inputs(specs, params, config)
-    keys = [
-        (constants.SHAPES[int(s)], round(float(z), 9))
-        for s, z in zip(specs.shape_id, specs.size, strict=True)
+    keys = [  # the part (shape, size, hole scale) of each trial: one scene each
+        (constants.SHAPES[int(s)], round(float(z), 9), round(float(h), 9))
+        for s, z, h in zip(specs.shape_id, specs.size, specs.hole_scale, strict=True)
     ]
     out_arrays: dict[str, np.ndarray] = {}
     for key in sorted(set(keys)):
         rows = np.array([i for i, k in enumerate(keys) if k == key])
         b = min(batch or 256, len(rows))
-        program = _program(key[0], key[1], config, b, recycle_every)
+        program = _program(key, config, b, recycle_every)
         inputs = {k: jnp.asarray(v[rows]) for k, v in inputs_all.items()}
         out = jax.device_get(program.run(inputs))
         for name, value in out._asdict().items():

@@ -216,7 +216,7 @@ def advance(config: TrialConfig, control: ControlConfig, basis: Basis, consts: T
     coupled = a * state.coupled + (1.0 - a) * wrench
     skill, dt = consts.skill, config.timestep * period_steps
     aligned = aligned_rotation(control.search, state.aligned, coupled, meas.tcp_pos,
-                               skill.goal_pos, skill.goal_rot, dt)  # fmt: skip
+                               skill.goal_pos, skill.goal_rot, dt, skill.search)  # fmt: skip
     spiral = spiral_state(control.search, state.spiral, coupled, meas.tcp_pos, skill.goal_pos,
                           skill.goal_rot, dt)  # fmt: skip
     settle, steps = state.settle, physics_steps(step, period_steps)

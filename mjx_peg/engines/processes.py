@@ -33,6 +33,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from mjx_peg.array_api import tree_map
 from mjx_peg.engines import interrupt
 from mjx_peg.engines.trial import TrialConfig, TrialResult
 from mjx_peg.skill.params import ControllerParams
@@ -122,7 +123,7 @@ def _while_workers_start():
 
 def take_params(params: ControllerParams, rows: np.ndarray) -> ControllerParams:
     """The parameters of the trials at `rows`."""
-    return ControllerParams(*(np.asarray(a)[rows] for a in params))
+    return tree_map(lambda a: np.asarray(a)[rows], params)
 
 
 def interleaved(n: int, shards: int) -> list[np.ndarray]:

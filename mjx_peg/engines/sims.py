@@ -1,7 +1,7 @@
 """One scene's C MuJoCo simulations as a `mujoco.batch.Batch`, and the pool that keeps them.
 
-Each scene (shape, size) a lane meets is a `Sims`: a Batch whose model fields that
-`scene.start_trial` edits per trial (board pose, grasp, friction) are expanded per simulation,
+Each scene (a part: shape, size, hole scale) a lane meets is a `Sims`: a Batch whose model fields
+that `scene.start_trial` edits per trial (board pose, grasp, friction) are expanded per simulation,
 with its fields bound as NumPy arrays. Small batches keep one MjData per simulation
 (persistent), larger ones one per C thread (PERSISTENT_MAX_SIMS). A step applies the torques
 written to `ctrl` (mj_step2), then runs the position and velocity stages at the new state
@@ -60,7 +60,9 @@ class Sims:
     Used by one lane at a time (a Batch serves one Python thread).
     """
 
-    def __init__(self, key: tuple[str, float], nsim: int, nthread: int, persistent: bool = True):
+    def __init__(
+        self, key: tuple[str, float, float], nsim: int, nthread: int, persistent: bool = True
+    ):
         self.key, self.nsim, self.kind = key, nsim, (nthread, persistent)
         self.model = m = scene.load_model(*key)
         self.trial_model = scene.load_model(*key)  # start_trial edits it; its fields are copied
@@ -160,7 +162,7 @@ _FREE: dict[tuple, list[Sims]] = {}
 _FREE_LOCK = threading.Lock()
 
 
-def take_sims(key: tuple[str, float], nsim: int, kind: tuple) -> Sims:
+def take_sims(key: tuple[str, float, float], nsim: int, kind: tuple) -> Sims:
     """Simulations for `key` from the pool, or new ones; kind: (C threads, persistent or None
     for persistent up to PERSISTENT_MAX_SIMS simulations)."""
     nthread, persistent = kind
@@ -199,6 +201,7 @@ def pooled() -> list[Sims]:
         return [s for free in _FREE.values() for s in free]
 
 
-def scene_key(specs: TrialSpec, index: int) -> tuple[str, float]:
-    """(shape, size) of trial `index`: the scene its simulation loads."""
-    return constants.SHAPES[int(specs.shape_id[index])], float(specs.size[index])
+def scene_key(specs: TrialSpec, index: int) -> tuple[str, float, float]:
+    """(shape, size, hole scale) of trial `index`: the part whose scene its simulation loads."""
+    shape = constants.SHAPES[int(specs.shape_id[index])]
+    return shape, float(specs.size[index]), float(specs.hole_scale[index])

@@ -22,7 +22,13 @@ from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
 from mjx_peg.skill import dmp, sensor
 from mjx_peg.skill.control_step import Basis, ControlConfig
-from mjx_peg.skill.params import ControllerParams, controller_from_vector
+from mjx_peg.skill.params import (
+    N_LEARNED,
+    N_PARAMS,
+    SEARCH_RANGES,
+    ControllerParams,
+    controller_from_vector,
+)
 from mjx_peg.skill.search import SkillConfig
 from mjx_peg.world.constants import SUCCESS_REWARD, TORQUE_LIMITS
 
@@ -230,6 +236,7 @@ def control_config(config: TrialConfig, xp=np) -> ControlConfig:
         force_deadband=config.force_deadband,
         moment_deadband=config.moment_deadband,
         search=config.search,
+        movement_s=config.movement.duration,
     )
 
 
@@ -359,13 +366,19 @@ def is_settled(state: SettleState, config: TrialConfig):
 def as_controller_params(params, batch: int) -> ControllerParams:
     """Validate and broadcast controller parameters to a batch of `batch` trials (NumPy).
 
-    Accepts `ControllerParams` or physical 38-vectors of shape (38,) or (batch, 38).
+    Accepts `ControllerParams` or physical vectors of shape (N,) or (batch, N), N = 38 (the
+    controller) or 47 (and the contact search's learned constants, `params.SEARCH_RANGES`).
     """
     if not isinstance(params, ControllerParams):
         vec = np.asarray(params, dtype=np.float64)
-        if vec.shape not in ((38,), (batch, 38)):
+        if (
+            vec.ndim not in (1, 2)
+            or vec.shape[-1] not in (N_PARAMS, N_LEARNED)
+            or (vec.ndim == 2 and vec.shape[0] != batch)
+        ):
             raise UsageError(
-                f"controller parameters must have shape (38,) or ({batch}, 38), got {vec.shape}"
+                f"controller parameters must have shape (N,) or ({batch}, N), N = {N_PARAMS} or "
+                f"{N_LEARNED}, got {vec.shape}"
             )
         params = controller_from_vector(vec)
     k_t = np.broadcast_to(np.asarray(params.k_t, dtype=np.float64), (batch,))
@@ -376,4 +389,14 @@ def as_controller_params(params, batch: int) -> ControllerParams:
             raise UsageError(f"controller parameter {name} has NaN or infinite values")
     if np.any(k_t <= 0) or np.any(k_theta <= 0):
         raise UsageError("controller stiffnesses k_t and k_theta must be positive")
-    return ControllerParams(k_t.copy(), k_theta.copy(), compliance.copy())
+    search = None
+    if params.search is not None:
+        values = {}
+        for name, value in params.search._asdict().items():
+            value = np.broadcast_to(np.asarray(value, dtype=np.float64), (batch,)).copy()
+            low, high, _ = SEARCH_RANGES[name]
+            if not np.all((value >= low) & (value <= high)):
+                raise UsageError(f"the search's {name} must lie in [{low}, {high}]")
+            values[name] = value
+        search = type(params.search)(**values)
+    return ControllerParams(k_t.copy(), k_theta.copy(), compliance.copy(), search)

@@ -16,10 +16,16 @@ PROG = "mjx-peg-baseline"
 def main(argv=None) -> int:
     """Success and time of the hand-tuned baseline per shape at given errors."""
     from mjx_peg.engines import ENGINES
+    from mjx_peg.world.task import HOLE_SCALE_HELP, parse_hole_scale
 
     p = cli.Parser(prog=PROG, description=main.__doc__)
-    p.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
+    p.add_argument(
+        "--shapes",
+        default=",".join(constants.PAPER_SHAPES),
+        help=f"comma-separated, of {', '.join(constants.SHAPES)}",
+    )
     p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="characteristic size S")
+    p.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=3.0, help="± linear error range")
     p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=4.0, help="± angular error range")
     p.add_argument("--trials", type=cli.TRIALS, default=100, help="per shape (default 100)")
@@ -39,16 +45,23 @@ def main(argv=None) -> int:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
     if len(set(shapes)) != len(shapes):
         p.error(f"--shapes names a shape twice: {args.shapes}")
+    hole_scale = parse_hole_scale(args.hole_scale)
     from mjx_peg.engines import run_trials
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.skill.baseline import baseline_params
     from mjx_peg.skill.search import skill_config
+    from mjx_peg.world.parts import fit_text
     from mjx_peg.world.task import TaskConfig, sample_trials
 
     config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(args.skill))
     tasks = [
         TaskConfig.from_mm_deg(
-            (shape,), args.size, args.linear_mm, args.angular_deg, grasp_model=args.grasp_model
+            (shape,),
+            args.size,
+            args.linear_mm,
+            args.angular_deg,
+            grasp_model=args.grasp_model,
+            hole_scale=hole_scale,
         )  # fmt: skip
         for shape in shapes
     ]
@@ -59,8 +72,9 @@ def main(argv=None) -> int:
     for shape, task in zip(shapes, tasks, strict=True):
         specs = sample_trials(task, args.seed, args.trials)
         result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
+        fit = fit_text(shape, task.hole_scale_range(shape)[0])
         print(
-            f"{shape} {args.size:g} mm ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
+            f"{shape} {args.size:g} mm{fit} ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
             f"{result.summary()}",
             flush=True,
         )

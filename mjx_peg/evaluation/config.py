@@ -73,6 +73,9 @@ class EvalConfig:
     # (search.named_skill). config.json records every one: a rerun with other constants is
     # refused, not resumed.
     skill_constants: SkillConfig | None = None
+    # The hole's clearance (hole size / peg size) of every shape: None, the paper's fit of each
+    # shape; a fit's name ("paper", "tight": constants.HOLE_FITS); or one number for all
+    hole_scale: float | str | None = None
 
     def __post_init__(self):
         try:
@@ -105,6 +108,12 @@ class EvalConfig:
         object.__setattr__(self, "shapes", shapes)
         if not (math.isfinite(self.size_mm) and self.size_mm > 0):
             raise UsageError(f"size must be a positive number of mm, got {self.size_mm!r}")
+        if isinstance(self.hole_scale, int | float) and not isinstance(self.hole_scale, bool):
+            object.__setattr__(self, "hole_scale", float(self.hole_scale))
+        elif self.hole_scale is not None and not isinstance(self.hole_scale, str):
+            raise UsageError(
+                f"hole_scale must be a number or a fit's name, got {self.hole_scale!r}"
+            )
         if self.engine not in ("mujoco", "mjx"):
             raise UsageError(f"engine must be resolved to mujoco or mjx, got {self.engine!r}")
         if self.grasp_model not in GRASP_MODELS:
@@ -152,7 +161,7 @@ def task_config(config: EvalConfig, shape: str, linear_mm: float, angular_deg: f
     """The TaskConfig of one shape and error range of an evaluation (SI units)."""
     return TaskConfig.from_mm_deg(
         (shape,), config.size_mm, linear_mm, angular_deg, time_limit_s=config.time_limit_s,
-        grasp_model=config.grasp_model,
+        grasp_model=config.grasp_model, hole_scale=config.hole_scale,
     )  # fmt: skip
 
 

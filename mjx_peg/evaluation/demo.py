@@ -83,7 +83,8 @@ def frame_strip(run: dict, frames: int) -> np.ndarray | None:
     specs, snaps = run["specs"], run["snapshots"]
     if not snaps:
         return None
-    model = scene.load_model(constants.SHAPES[int(specs.shape_id[0])], float(specs.size[0]))
+    shape = constants.SHAPES[int(specs.shape_id[0])]
+    model = scene.load_model(shape, float(specs.size[0]), float(specs.hole_scale[0]))
     scene.set_board_pose(model, *specs.board_pos[0], specs.board_yaw[0],
                          specs.board_height[0], specs.board_tilt[0])  # fmt: skip
     scene.set_grasp(model, *specs.grasp_error[0])

@@ -27,6 +27,7 @@ PROG = "mjx-peg-demo"
 _DEFAULTS = {
     "shape": "square",
     "size": 50.0,
+    "hole_scale": "paper",
     "linear_mm": 3.0,
     "angular_deg": 4.0,
     "seed": 0,
@@ -37,6 +38,7 @@ _DEFAULTS = {
 
 def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS
+    from mjx_peg.world.task import HOLE_SCALE_HELP
 
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
@@ -44,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--size", type=cli.SIZE_MM, help=f"characteristic size S (default {d['size']:g})"
     )
+    p.add_argument("--hole-scale", help=HOLE_SCALE_HELP)
     p.add_argument(
         "--linear-mm",
         type=cli.LINEAR_MM,
@@ -106,7 +109,8 @@ def trial_from_args(args):
     """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.policy.export import policy_skill
-    from mjx_peg.world.task import TaskConfig, sample_trials
+    from mjx_peg.world.parts import fit_text
+    from mjx_peg.world.task import TaskConfig, parse_hole_scale, sample_trials
 
     for dest, value in _DEFAULTS.items():
         if getattr(args, dest) is None:
@@ -114,10 +118,12 @@ def trial_from_args(args):
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     args.policy = resolve_policy(args.policy)
-    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg)
+    task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
+                                  hole_scale=parse_hole_scale(args.hole_scale))  # fmt: skip
     specs = sample_trials(task, args.seed, 1)
     _, controller = _controller(args.policy)
-    label = f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg"
+    label = (f"{args.shape} {args.size:g} mm{fit_text(args.shape, specs.hole_scale[0])}, "
+             f"±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg")  # fmt: skip
     search = policy_skill(args.policy).config  # the skill its manifest names
     return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 

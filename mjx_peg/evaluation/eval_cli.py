@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
+    from mjx_peg.world.task import HOLE_SCALE_HELP
 
     p = cli.Parser(
         prog=PROG,
@@ -94,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--size", type=cli.SIZE_MM, default=50.0, help="characteristic size S (default 50)"
     )
+    p.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     p.add_argument(
         "--trials",
         type=cli.TRIALS,
@@ -152,6 +154,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
     from mjx_peg.evaluation.config import MAX_ERROR, EvalConfig, grid_axes
     from mjx_peg.policy.export import choose_skill
     from mjx_peg.world.constants import SHAPES
+    from mjx_peg.world.task import parse_hole_scale
 
     linear = None if args.linear_mm is None else cli.parse_ranges(args.linear_mm, "--linear-mm")
     angular = (
@@ -184,6 +187,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
         if shape not in SHAPES:
             raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
     skill = choose_skill(args.skill, args.policy)
+    hole_scale = parse_hole_scale(args.hole_scale)
     return EvalConfig(
         policy=policy_label,
         grid=args.grid,
@@ -199,6 +203,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
         skill_constants=skill.config,
         seed=args.seed,
         engine=resolve_engine(args.engine),
+        hole_scale=None if hole_scale == "paper" else hole_scale,
     )
 
 
@@ -239,7 +244,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise UsageError(f"--compare {exc}") from None
     paper_name = args.paper
     if paper_name == "auto":
-        paper_name = paper_condition_for(config.shapes, config.size_mm)
+        paper_fit = config.hole_scale is None
+        paper_name = paper_condition_for(config.shapes, config.size_mm) if paper_fit else None
     elif paper_name == "none":
         paper_name = None
     outdir.check_apart(out, {"--policy": policy, "--compare": args.compare})

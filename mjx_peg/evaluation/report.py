@@ -23,6 +23,7 @@ from mjx_peg.evaluation.grid_table import GridTable
 from mjx_peg.evaluation.paper_tables import PAPER
 from mjx_peg.evaluation.summary import summary_markdown
 from mjx_peg.skill.search import skill_description
+from mjx_peg.world.constants import HOLE_FITS
 from mjx_peg.world.task import SHAPES, TrialSpec
 
 GRASP_DESCRIPTION = {
@@ -57,7 +58,8 @@ def _header(out: Path, config: EvalConfig, grid: GridTable, policy_label: str) -
         f"policy: {policy_label}",
         f"grid: {config.grid}, {len(lin)} linear x {len(ang)} angular = {len(config.ranges)} "
         f"ranges; linear +-{lin[0]:g}..{lin[-1]:g} mm, angular +-{ang[0]:g}..{ang[-1]:g} deg",
-        f"shapes: {', '.join(config.shapes)} (trials split evenly); size S = {config.size_mm:g} mm",
+        f"shapes: {', '.join(config.shapes)} (trials split evenly); size S = {config.size_mm:g} mm"
+        f"; hole scale (hole size / peg size) {_fit(config.hole_scale)}",
         f"trials per range: {config.trials}; time limit {config.time_limit_s:g} s per trial; "
         + (
             "every failure ran to the time limit (--full-time-limit)"
@@ -72,6 +74,15 @@ def _header(out: Path, config: EvalConfig, grid: GridTable, policy_label: str) -
         + shapes,
         f"simulated: {steps} physics steps = {steps * TrialConfig().timestep:.0f} s",
     ] + _contact_lines({k: np.concatenate(v) for k, v in contact.items() if v})
+
+
+def _fit(hole_scale) -> str:
+    """An evaluation's hole scale in words."""
+    if hole_scale is None:
+        return "the paper's (circle 1.03 D, shapes with corners 1.08 S)"
+    if isinstance(hole_scale, str):
+        return f"{hole_scale} ({', '.join(f'{k} {v:g}' for k, v in HOLE_FITS[hole_scale].items())})"
+    return f"{hole_scale:g} for every shape"
 
 
 def _contact_lines(arrays: dict[str, np.ndarray]) -> list[str]:

@@ -21,15 +21,14 @@ import math
 
 import numpy as np
 
-from mjx_peg.world import mjcf
-from mjx_peg.world.constants import HOLE_DEPTH, SHAPES
+from mjx_peg.world import parts
+from mjx_peg.world.constants import CIRCUMRADIUS, HOLE_DEPTH, SHAPES
 from mjx_peg.world.task import TrialSpec, hole_frame
 
 CLASSES = ("protective stop", "unstable", "wedged in the hole", "on the rim", "crept away",
            "above the board")  # fmt: skip
 WEDGED_DEPTH = 0.002  # m below the entrance: the tip is in the hole
 ABOVE_HEIGHT = 0.005  # m above the entrance plane: the tip is off the board
-_CIRCUMRADIUS = {"circle": 0.5, "square": math.sqrt(0.5), "triangle": 1.0 / math.sqrt(3.0)}
 
 
 def tip_at_hole(specs: TrialSpec, tip_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -49,8 +48,11 @@ def classify(specs: TrialSpec, arrays) -> np.ndarray:
     depth, lateral = tip_at_hole(specs, arrays["final_tip_pos"])
     names = [SHAPES[int(i)] for i in specs.shape_id]
     size = np.asarray(specs.size, dtype=np.float64)
-    hole = np.array([mjcf.hole_inradius(s, float(z)) for s, z in zip(names, size, strict=True)])
-    rim = hole + size * np.array([_CIRCUMRADIUS[s] for s in names])
+    hole = np.array([
+        parts.hole_inradius(s, float(z), float(h))
+        for s, z, h in zip(names, size, specs.hole_scale, strict=True)
+    ])  # fmt: skip
+    rim = hole + size * np.array([CIRCUMRADIUS[s] for s in names])
     below = depth > WEDGED_DEPTH
     where = np.select(
         [below & (lateral < hole + WEDGED_DEPTH), below, depth < -ABOVE_HEIGHT, lateral < rim],

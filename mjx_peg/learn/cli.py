@@ -5,6 +5,9 @@
     python train.py --preset transfer --init-from runs/paper --out runs/transfer
     python train.py --preset transfer --init-from paper --out runs/transfer  # policies/paper
     python train.py --preset paper --out runs/paper  # after a crash or kill: resumes
+    python train.py --preset paper --prior none --out runs/scratch  # from a generic start
+    python train.py --preset paper --seeds 0,1,2 --out runs/paper   # runs/paper/seed-N, in turn
+    python -m mjx_peg.learn.seeds runs/paper         # their curves and spread, seeds.png
 
 Bad input exits with status 2 and one line on stderr, before --out is touched. --force moves an
 earlier run aside (never deletes it) and replaces nothing but a training run; --out is never the
@@ -30,7 +33,8 @@ MAX_NUM_ENVS = 65_536  # trials per iteration
 
 def parser() -> argparse.ArgumentParser:
     from mjx_peg.engines import ENGINES
-    from mjx_peg.learn.config import ACTION_MAPS, PRESETS
+    from mjx_peg.learn.config import ACTION_MAPS, PRESETS, PRIORS
+    from mjx_peg.policy.observation import LAYOUTS
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS
 
@@ -39,6 +43,34 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=cli.nonempty_path, help="run directory (default: runs/PRESET)")
     p.add_argument("--engine", choices=ENGINES, help="physics engine (preset: mujoco)")
     p.add_argument("--seed", type=cli.SEED, help="preset: 0")
+    p.add_argument(
+        "--seeds",
+        type=cli.SEED_LIST,
+        help="a set of runs, one per seed (e.g. 0,1,2), one after another into OUT/seed-N; "
+        "a rerun resumes the set; python -m mjx_peg.learn.seeds OUT draws their spread",
+    )
+    p.add_argument(
+        "--prior",
+        choices=PRIORS,
+        help="where the policy starts: baseline (preset: the hand-tuned skill) or none (Brax's "
+        "initialization: every number mid-range, learned from there)",
+    )
+    p.add_argument(
+        "--fixed-skill",
+        action="store_true",
+        help="learn the 38 controller numbers alone, the skill's constants as the skill sets "
+        "them (preset: they are learned beside the 38)",
+    )
+    p.add_argument(
+        "--eval-every",
+        type=cli.integer(0, 1_000_000),
+        help="every N iterations run the policy's mean on held-out trials (eval.csv, eval/...)",
+    )
+    p.add_argument(
+        "--tensorboard",
+        action="store_true",
+        help="also write every metric to OUT/tensorboard (tensorboard --logdir OUT)",
+    )
     p.add_argument("--num-envs", type=cli.integer(1, MAX_NUM_ENVS), help="trials per iteration")
     p.add_argument(
         "--trials",
@@ -82,6 +114,13 @@ def parser() -> argparse.ArgumentParser:
         help="how the policy's action becomes the 38 numbers (default centred: action 0 is the "
         "baseline; sigmoid: the map of the first runs; --init-from takes its run's map)",
     )
+    p.add_argument(
+        "--observation",
+        choices=tuple(LAYOUTS),
+        help="what the policy reads of a part (default geometry: symmetry order, radii, "
+        "clearance, depth; names: a one-hot of the paper's three shapes and the size, the "
+        "shipped policies'; --init-from takes its run's)",
+    )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -96,11 +135,13 @@ def parser() -> argparse.ArgumentParser:
 
 def resolve_config(args):
     """The preset with the command line's overrides applied (ValueError on bad values)."""
-    from mjx_peg.learn.config import PRESETS
+    from mjx_peg.learn.config import PRESETS, prior_settings
     from mjx_peg.learn.run_dir import RunDir
     from mjx_peg.policy.export import load_policy
     from mjx_peg.policy.shipped import resolve_policy
 
+    if args.seed is not None and args.seeds is not None:
+        raise UsageError("--seed and --seeds: give one of them")
     overrides = {
         "engine": args.engine,
         "seed": args.seed,
@@ -112,20 +153,36 @@ def resolve_config(args):
         "action_map": args.action_map,
         "grasp_model": args.grasp_model,
         "skill": args.skill,
+        "eval_every": args.eval_every,
+        "observation": args.observation,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
+    if args.fixed_skill:
+        config = config.replace(learn_search=False)
+    if args.prior is not None:
+        if args.prior == "none" and args.action_map == "centred":
+            raise UsageError("--prior none starts mid-range under the sigmoid map; the centred "
+                             "map is centred on the hand-tuned skill")  # fmt: skip
+        config = config.replace(**prior_settings(args.prior))
     if args.preset == "transfer" and not config.init_from:
         raise UsageError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:
         config = config.replace(init_from=resolve_policy(config.init_from, "--init-from", False))
         load_policy(config.init_from)  # a finished run with a readable policy, or one clear line
-        source = RunDir(config.init_from).read_config().action_map
+        trained = RunDir(config.init_from).read_config()
+        source = trained.action_map
         if args.action_map not in (None, source):
             raise UsageError(
                 f"--action-map {args.action_map}: {config.init_from} was trained with the {source}"
                 " map, and its networks mean that map's actions"
             )
-        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source)
+        if args.observation not in (None, trained.observation):
+            raise UsageError(
+                f"--observation {args.observation}: {config.init_from} was trained on the "
+                f"{trained.observation} layout, and its networks read that layout"
+            )
+        config = config.replace(init_from=os.path.abspath(config.init_from), action_map=source,
+                                observation=trained.observation)  # fmt: skip
     return config
 
 
@@ -196,16 +253,40 @@ def main(argv=None) -> int:
 
         signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
-    # One writer per --out (with --distributed, the process that writes the files holds it)
-    with outdir.exclusive(out) if _writes_files(args) else contextlib.nullcontext():
-        summary = train(
-            config,
-            out,
-            force=args.force,
-            checkpoint_every_s=args.checkpoint_every,
-            progress=not args.no_progress,
-            engine_options=options,
-            note=lambda text: cli.note(PROG, text),
-        )
-    print(summary.line())
+    runs = [(config, out)]
+    if args.seeds is not None:
+        runs = [(config.replace(seed=seed), Path(out, f"seed-{seed}")) for seed in args.seeds]
+    writes = _writes_files(args)
+    # One writer per --out and per seed's run in it (with --distributed, the process that
+    # writes the files holds them)
+    with outdir.exclusive(out) if writes else contextlib.nullcontext():
+        for run_config, run_out in runs:
+            if len(runs) > 1 and not args.force and finished_run(run_config, run_out):
+                cli.note(PROG, f"{run_out} is finished: skipped")
+                continue
+            held = outdir.exclusive(run_out) if writes and run_out != out else None
+            with held or contextlib.nullcontext():
+                summary = train(
+                    run_config,
+                    run_out,
+                    force=args.force,
+                    checkpoint_every_s=args.checkpoint_every,
+                    progress=not args.no_progress,
+                    engine_options=options,
+                    note=lambda text: cli.note(PROG, text),
+                    tensorboard=args.tensorboard,
+                )
+            print(summary.line())
+    if len(runs) > 1:
+        from mjx_peg.learn.seeds import summarize
+
+        print(summarize(out))
     return 0
+
+
+def finished_run(config, out) -> bool:
+    """`out` holds a finished run of exactly `config` (a set of seeds skips it on a rerun)."""
+    from mjx_peg.learn.run_dir import RunDir
+
+    run = RunDir(out)
+    return run.is_finished() and run.read_config() == config

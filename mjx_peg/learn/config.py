@@ -18,15 +18,20 @@ import dataclasses
 import json
 import math
 
+import numpy as np
+
 from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
+from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
+from mjx_peg.skill.params import N_LEARNED, N_PARAMS
+from mjx_peg.skill.search import LEARNED, SkillConfig, constants_record, named_skill
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
+OBS_STATISTICS = ("running", "context")
 # How the policy's unbounded action becomes the 38 numbers (skill/params.py): "centred" puts
 # action 0 at the baseline with the sensitivity of a range's middle in both directions;
 # "sigmoid" (the first runs' map) centres each number's range instead, and the
@@ -54,12 +59,45 @@ class TrainConfig:
     # outcome, where minibatches chase the noise (docs/design/training_presets.md)
     num_minibatches: int = 1
     update_epochs: int = 4
-    learning_rate: float = 1e-3
+    learning_rate: float = 3e-3  # the first update's; then kl_target adapts it
     entropy_cost: float = 1e-4
     clipping_epsilon: float = 0.2
     init_noise_std: float = 0.4  # exploration std of the gains and compliance diagonal (action)
     init_noise_std_coupling: float = 0.1  # of the 30 off-diagonal couplings
+    # True: the policy acts in units of those initial stds (its own std starts at 1 for every
+    # number; the env and the export multiply its action by them), so that Adam's steps, which
+    # move every output alike, move each number by the same fraction of its exploration and each
+    # contributes alike to the update's KL; False: the raw action (config.json files without it)
+    normalized_actions: bool = True
+    # Under normalized_actions: the policy's first two numbers are the stiffnesses' common level
+    # and their ratio, k_t at level + ratio and k_theta at level - ratio (the sigmoid map's
+    # actions), explored with stds init_noise_std_level and init_noise_std; inserting needs both
+    # stiff or both soft (a stiff arm on a soft wrist protective-stops), which independent
+    # exploration of the two finds only in the corner of both tails. False: k_t and k_theta
+    joint_stiffness: bool = False
+    init_noise_std_level: float = 1.5
     prior: str = "baseline"  # "baseline": start at the hand-tuned skill; "none": Brax's init
+    # "none" only: the policy's mean head's initial kernel times this (Brax's init: 1), so the
+    # first policy is the mid-range controller for every observation rather than a random
+    # function of it
+    head_init_scale: float = 1.0
+    # Adaptive learning rate: after each iteration the rate is divided by 1.5 where the mean
+    # per-number KL of the update passed 2 kl_target and multiplied by 1.5 where it stayed under
+    # kl_target / 2, within [learning_rate_min, learning_rate_max]; 0: a fixed learning_rate
+    kl_target: float = 0.01
+    learning_rate_min: float = 1e-5
+    learning_rate_max: float = 1e-2
+    # "running": Brax's running statistics of the observations, updated with every iteration;
+    # "context": fitted once, before the first trial, to `context_samples` observations drawn
+    # from the task (a contextual bandit's observations do not depend on the policy)
+    obs_statistics: str = "context"
+    context_samples: int = 4096
+    # Every eval_every iterations (0: never) the policy's mean, without exploration, runs
+    # eval_trials held-out trials of the task (drawn once from the seed eval_seed), written to
+    # eval.csv and TensorBoard as eval/...: the learning curve of the policy that is exported
+    eval_every: int = 0
+    eval_trials: int = 128
+    eval_seed: int = 1_000_003
     action_map: str = "centred"  # ACTION_MAPS; config.json files without it were "sigmoid"
     policy_hidden: tuple[int, ...] = (64, 64)
     value_hidden: tuple[int, ...] = (64, 64)
@@ -85,6 +123,17 @@ class TrainConfig:
     # Its constants (a SkillConfig, or its JSON record); None: the named skill's
     # (search.named_skill). config.json records every one.
     skill_constants: SkillConfig | None = None
+    # The policy outputs the contact search's learnable constants (skill.search.LEARNED: the
+    # spiral's pitch, radius, speed and press, the alignment's rate and depth, the insertion
+    # press's depth and strength, the movement's duration) beside the 38, each in its physical
+    # range (skill.params.SEARCH_RANGES); the skill's own values are the baseline prior's.
+    # where the skill has them (the paper's has none). False: the 38 alone, the skill's constants
+    # fixed (config.json files without it)
+    learn_search: bool = True
+    # The policy's observation layout (policy.observation.LAYOUTS): "geometry" reads the part by
+    # its geometry, "names" by a one-hot of the paper's three shapes; config.json files without
+    # it were "names" (file_versions)
+    observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
         try:
@@ -127,13 +176,20 @@ class TrainConfig:
             raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         if self.prior not in PRIORS:
             raise UsageError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
+        if self.obs_statistics not in OBS_STATISTICS:
+            raise UsageError(
+                f"unknown observation statistics {self.obs_statistics!r}: choose from "
+                f"{', '.join(OBS_STATISTICS)}"
+            )
         if self.action_map not in ACTION_MAPS:
             raise UsageError(
                 f"unknown action map {self.action_map!r}: choose from {', '.join(ACTION_MAPS)}"
             )
+        check_layout(self.observation)
         if self.engine not in ENGINES:
             raise UsageError(f"unknown engine {self.engine!r}: choose from {', '.join(ENGINES)}")
-        for name in ("trials", "num_envs", "num_minibatches", "update_epochs"):
+        for name in ("trials", "num_envs", "num_minibatches", "update_epochs", "context_samples",
+                     "eval_trials"):  # fmt: skip
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
                 flag = "--" + name.replace("_", "-")
@@ -144,10 +200,25 @@ class TrainConfig:
             "init_noise_std",
             "init_noise_std_coupling",
             "clipping_epsilon",
+            "head_init_scale",
+            "init_noise_std_level",
+            "learning_rate_min",
+            "learning_rate_max",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"{name} must be a positive number, got {value}")
+        if self.joint_stiffness and not self.normalized_actions:
+            raise UsageError("joint_stiffness needs normalized_actions")
+        if not (isinstance(self.eval_every, int) and self.eval_every >= 0):
+            raise UsageError(f"--eval-every must be an integer >= 0, got {self.eval_every}")
+        if not (math.isfinite(self.kl_target) and self.kl_target >= 0):
+            raise UsageError(f"kl_target must be >= 0 (0: a fixed rate), got {self.kl_target}")
+        if not self.learning_rate_min <= self.learning_rate <= self.learning_rate_max:
+            raise UsageError(
+                f"learning_rate {self.learning_rate} must lie in [learning_rate_min, "
+                f"learning_rate_max] = [{self.learning_rate_min}, {self.learning_rate_max}]"
+            )
         if not (math.isfinite(self.entropy_cost) and self.entropy_cost >= 0):
             raise UsageError(f"entropy_cost must be >= 0, got {self.entropy_cost}")
         if self.num_envs % self.num_minibatches:
@@ -183,9 +254,34 @@ class TrainConfig:
             search=self.skill_constants,
         )
 
+    @property
+    def learns_search(self) -> bool:
+        """The policy learns the search's constants: asked to, and the skill has the spiral,
+        the alignment and the insertion press they set (the paper's skill has none)."""
+        search = self.skill_constants
+        return self.learn_search and (
+            search.spiral_speed > 0 and search.align_rate > 0 and search.insert_axial != 1.0
+        )
+
+    @property
+    def action_size(self) -> int:
+        """The numbers the policy outputs: 38, or 47 with the search's constants."""
+        return N_LEARNED if self.learns_search else N_PARAMS
+
+    def prior_vector(self):
+        """(38,) or (47,) the hand-tuned start: the baseline's 38 and the skill's constants."""
+        vector = baseline_params()
+        if not self.learns_search:
+            return vector
+        trial = self.trial()
+        values = [getattr(trial.search, name) for name in LEARNED]
+        values[LEARNED.index("movement_s")] = trial.movement.duration
+        return np.concatenate([vector, values])
+
     def map_centre(self):
-        """(38,) physical vector at action 0 of the centred map, or None for the sigmoid map."""
-        return baseline_params() if self.action_map == "centred" else None
+        """(38,) or (47,) physical vector at action 0 of the centred map, or None for the sigmoid
+        map."""
+        return self.prior_vector() if self.action_map == "centred" else None
 
     def replace(self, **changes) -> TrainConfig:
         """A copy with `changes`; another skill comes with its own constants unless given."""
@@ -209,6 +305,30 @@ class TrainConfig:
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n"
+
+
+# A start with no hand-tuned number (`--prior none`): Brax's initialization under the sigmoid map
+# (every number mid-range of its physical range), the mean head's kernel shrunk so that the
+# first policy is that controller for every observation, and what learning from there needs
+# (docs/design/learning_from_scratch.md): exploration across the ranges, updates held to a
+# KL, observation statistics of the task's contexts.
+GENERIC_START = {
+    "prior": "none",
+    "action_map": "sigmoid",
+    "head_init_scale": 0.01,
+    "joint_stiffness": True,
+    "init_noise_std": 1.0,
+}
+HAND_TUNED_START = {"prior": "baseline", "action_map": "centred", "head_init_scale": 1.0,
+                    "joint_stiffness": False, "init_noise_std": 0.4}  # fmt: skip
+
+
+def prior_settings(prior: str) -> dict:
+    """The TrainConfig changes of a start (`--prior`): "baseline", the hand-tuned skill, or
+    "none", GENERIC_START."""
+    if prior not in PRIORS:
+        raise UsageError(f"unknown prior {prior!r}: choose from {', '.join(PRIORS)}")
+    return dict(GENERIC_START if prior == "none" else HAND_TUNED_START)
 
 
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with

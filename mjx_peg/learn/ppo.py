@@ -31,8 +31,7 @@ from brax.training.agents.ppo import losses as ppo_losses
 from brax.training.agents.ppo import networks as ppo_networks
 
 from mjx_peg.learn.config import TrainConfig
-from mjx_peg.learn.env import METRICS, OBSERVATION_SIZE, InsertionEnv
-from mjx_peg.skill.baseline import baseline_params
+from mjx_peg.learn.env import METRICS, InsertionEnv, observation_sizes
 from mjx_peg.skill.params import (
     DEFAULT_RANGES,
     N_PARAMS,
@@ -65,8 +64,8 @@ class TrainingState:
 def make_networks(config: TrainConfig) -> ppo_networks.PPONetworks:
     """Brax PPO networks: swish MLPs, a Gaussian policy with a learned state-independent std."""
     return ppo_networks.make_ppo_networks(
-        OBSERVATION_SIZE,
-        N_PARAMS,
+        observation_sizes(config.observation),
+        config.action_size,
         preprocess_observations_fn=running_statistics.normalize,
         policy_hidden_layer_sizes=tuple(config.policy_hidden),
         value_hidden_layer_sizes=tuple(config.value_hidden),
@@ -79,33 +78,127 @@ def make_networks(config: TrainConfig) -> ppo_networks.PPONetworks:
 
 
 def make_optimizer(config: TrainConfig) -> optax.GradientTransformation:
-    return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(config.learning_rate))
+    """Adam behind a global gradient-norm clip of 1; with `kl_target` its rate is a state of the
+    optimizer (`adapt_learning_rate` sets it), so a resumed run continues at the rate it had."""
+    if config.kl_target > 0:
+        adam = optax.inject_hyperparams(optax.adam)(learning_rate=config.learning_rate)
+    else:
+        adam = optax.adam(config.learning_rate)
+    return optax.chain(optax.clip_by_global_norm(1.0), adam)
+
+
+def learning_rate(config: TrainConfig, optimizer_state) -> jax.Array:
+    """() the learning rate the next update uses."""
+    if config.kl_target > 0:
+        return optimizer_state[1].hyperparams["learning_rate"]
+    return jnp.asarray(config.learning_rate, jnp.float32)
+
+
+def adapt_learning_rate(config: TrainConfig, optimizer_state, kl):
+    """The optimizer state with its rate divided by 1.5 where the update's mean per-number KL
+    `kl` passed 2 kl_target, multiplied by 1.5 where it stayed under kl_target / 2 (the
+    adaptive schedule of rl_games' PPO, which Isaac Lab's insertion tasks train with), within
+    [learning_rate_min, learning_rate_max]; unchanged without a kl_target."""
+    if config.kl_target <= 0:
+        return optimizer_state
+    inject = optimizer_state[1]
+    rate = inject.hyperparams["learning_rate"]
+    rate = jnp.where(kl > 2.0 * config.kl_target, rate / 1.5,
+                     jnp.where(kl < 0.5 * config.kl_target, rate * 1.5, rate))  # fmt: skip
+    rate = jnp.clip(rate, config.learning_rate_min, config.learning_rate_max)
+    inject = inject._replace(hyperparams={**inject.hyperparams, "learning_rate": rate})
+    return (optimizer_state[0], inject, *optimizer_state[2:])
+
+
+def context_statistics(config: TrainConfig, normalizer_params):
+    """Observation statistics fitted to `config.context_samples` trials drawn from the task
+    (seeded by the run's seed): the mean and the std (floored at OBS_STD_FLOOR) of what the
+    policy and the critic see. A contextual bandit's observations do not depend on the policy,
+    so the statistics need not run: the first update then sees the inputs the last one does."""
+    from mjx_peg.policy import observation
+    from mjx_peg.world.task import sample_trials
+
+    specs = sample_trials(config.task(), np.random.default_rng([config.seed, 1]),
+                          config.context_samples)  # fmt: skip
+    obs = observation.observe_specs(specs, config.observation)
+    full = np.concatenate([obs, observation.privileged_specs(specs)], axis=-1)
+    count = config.context_samples
+    mean, std, summed = {}, {}, {}
+    for key, x in (("state", obs), ("privileged_state", full)):
+        mean[key] = jnp.asarray(x.mean(axis=0), jnp.float32)
+        var = x.var(axis=0)
+        std[key] = jnp.asarray(np.maximum(np.sqrt(var), OBS_STD_FLOOR), jnp.float32)
+        summed[key] = jnp.asarray(var * count, jnp.float32)
+    counter = type(normalizer_params.count)
+    return normalizer_params.replace(
+        count=counter(hi=jnp.uint32(count >> 32), lo=jnp.uint32(count & 0xFFFFFFFF)),
+        mean=mean,
+        std=std,
+        summed_variance=summed,
+    )
 
 
 def prior_action(config: TrainConfig) -> np.ndarray:
-    """(38,) action of the hand-tuned baseline: 0 under the centred map (its centre); under the
-    sigmoid map the baseline's action, its compliance pulled inside the ranges (at a range's edge
-    the squashing saturates; at PRIOR_EDGE of the bound the action is finite)."""
+    """(38,) or (47,) action of the hand-tuned start (`TrainConfig.prior_vector`): 0 under the
+    centred map (its centre); under the sigmoid map its action, the compliance pulled inside the
+    ranges (at a range's edge the squashing saturates; at PRIOR_EDGE of the bound the action is
+    finite)."""
     if config.action_map == "centred":
-        return np.zeros(N_PARAMS, np.float32)
-    vector = baseline_params()
+        return np.zeros(config.action_size, np.float32)
+    vector = config.prior_vector()
     bound = np.asarray(DEFAULT_RANGES.compliance_bound()).reshape(36)
-    vector[2:] = np.clip(vector[2:], -PRIOR_EDGE * bound, PRIOR_EDGE * bound)
+    vector[2:N_PARAMS] = np.clip(vector[2:N_PARAMS], -PRIOR_EDGE * bound, PRIOR_EDGE * bound)
     return np.asarray(action_from_controller(controller_from_vector(vector)), np.float32)
 
 
+def exploration_scale(config: TrainConfig) -> np.ndarray:
+    """(38,) or (47,) the initial exploration std of each number (`init_noise_std` on k_t,
+    k_theta, the compliance diagonal and the search's constants, `init_noise_std_coupling` on the
+    30 couplings): the unit of the policy's action under `normalized_actions`."""
+    diagonal = [True, True] + [i == j for i in range(6) for j in range(6)]
+    diagonal += [True] * (config.action_size - N_PARAMS)  # the search's constants
+    std = [config.init_noise_std if d else config.init_noise_std_coupling for d in diagonal]
+    return np.asarray(std, np.float32)
+
+
+def action_transform(config: TrainConfig) -> np.ndarray:
+    """(A, A) M: the map's action is the network's times M (a row vector times M). Under
+    `normalized_actions` the diagonal of exploration scales, and with `joint_stiffness` its
+    first two rows mix: k_t's action = s_l level + s_r ratio, k_theta's = s_l level - s_r ratio;
+    else the identity. Linear, so the export folds it into the network's head."""
+    size = config.action_size
+    if not config.normalized_actions:
+        return np.eye(size, dtype=np.float32)
+    m = np.diag(exploration_scale(config)).astype(np.float32)
+    if config.joint_stiffness:
+        s_l, s_r = config.init_noise_std_level, config.init_noise_std
+        m[0, :2], m[1, :2] = (s_l, s_l), (s_r, -s_r)
+    return m
+
+
+def to_map_action(config: TrainConfig, raw):
+    """(..., A) the map's action of the network's (..., A) `raw` (`action_transform`)."""
+    return raw @ action_transform(config)
+
+
+def from_map_action(config: TrainConfig, action):
+    """(..., A) the network's action whose map action is `action` (the inverse)."""
+    return action @ np.linalg.inv(action_transform(config)).astype(np.float32)
+
+
 def initial_log_std(config: TrainConfig) -> jax.Array:
-    """(38,) log of the initial exploration std: `init_noise_std` on k_t, k_theta and the
-    compliance diagonal, `init_noise_std_coupling` on the 30 off-diagonal couplings.
+    """(38,) or (47,) log of the initial exploration std: `init_noise_std` on k_t, k_theta, the
+    compliance diagonal and the search's constants, `init_noise_std_coupling` on the 30
+    off-diagonal couplings.
 
     Measured on 160 trials at +-4 mm / +-6 deg around the baseline: noise of 0.5 on the couplings
     alone halves success (55 % -> 26 %), on the gains and diagonal alone it costs less (-> 40 %),
     and (0.3, 0.1) costs nothing (54 %). Random couplings mostly make the peg wander; a trial
     whose outcome is decided by that noise says little about the mean.
     """
-    diagonal = [True, True] + [i == j for i in range(6) for j in range(6)]
-    std = [config.init_noise_std if d else config.init_noise_std_coupling for d in diagonal]
-    return jnp.log(jnp.asarray(std, jnp.float32))
+    if config.normalized_actions:  # the network acts in units of the exploration
+        return jnp.zeros(config.action_size, jnp.float32)
+    return jnp.log(jnp.asarray(exploration_scale(config)))
 
 
 def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> TrainingState:
@@ -122,18 +215,21 @@ def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> Train
     policy = {
         "params": {**policy["params"], "std_logparam": {"log_value": initial_log_std(config)}}
     }
+    head = policy["params"]["Dense_0"]
     if config.prior == "baseline":
-        head = policy["params"]["Dense_0"]
         head = {
             "kernel": head["kernel"] * PRIOR_KERNEL_SCALE,
-            "bias": jnp.asarray(prior_action(config)),
+            "bias": jnp.asarray(from_map_action(config, prior_action(config))),
         }
-        policy = {"params": {**policy["params"], "Dense_0": head}}
+    else:
+        head = {**head, "kernel": head["kernel"] * config.head_init_scale}
+    policy = {"params": {**policy["params"], "Dense_0": head}}
     params = ppo_losses.PPONetworkParams(
         policy=policy,
         value=networks.value_network.init(k_value),
     )
-    obs_spec = {k: specs.Array(v, jnp.dtype("float32")) for k, v in OBSERVATION_SIZE.items()}
+    sizes = observation_sizes(config.observation)
+    obs_spec = {k: specs.Array(v, jnp.dtype("float32")) for k, v in sizes.items()}
     return TrainingState(
         optimizer_state=make_optimizer(config).init(params),
         params=params,
@@ -199,12 +295,14 @@ def make_iteration(env: InsertionEnv, config: TrainConfig):
         env_state, transition = acting.actor_step(
             batched_env, env_state, policy, k_act, extra_fields=("truncation",)
         )
-        normalizer_params = running_statistics.update(
-            state.normalizer_params,
-            transition.observation,
-            pmap_axis_name=AXIS,
-            std_min_value=OBS_STD_FLOOR,
-        )
+        normalizer_params = state.normalizer_params
+        if config.obs_statistics == "running":
+            normalizer_params = running_statistics.update(
+                normalizer_params,
+                transition.observation,
+                pmap_axis_name=AXIS,
+                std_min_value=OBS_STD_FLOOR,
+            )
         data = jax.tree.map(lambda x: x[:, None], transition)  # [B, T=1] as the loss expects
         (optimizer_state, params, _, _), metrics = jax.lax.scan(
             functools.partial(epoch, data=data),
@@ -212,7 +310,11 @@ def make_iteration(env: InsertionEnv, config: TrainConfig):
             None,
             length=config.update_epochs,
         )
+        # the update's KL: the last epoch's, after all but its own last step
+        kl = jnp.mean(metrics["kl_mean"][-1])
         metrics = jax.tree.map(jnp.mean, metrics)
+        metrics["learning_rate"] = learning_rate(config, optimizer_state)
+        optimizer_state = adapt_learning_rate(config, optimizer_state, jax.lax.pmean(kl, AXIS))
         new_state = state.replace(
             optimizer_state=optimizer_state,
             params=params,
@@ -241,26 +343,31 @@ def unreplicate(tree: Any) -> Any:
     )
 
 
-def policy_layers(params: ppo_losses.PPONetworkParams) -> list[tuple]:
-    """[(kernel, bias), ...] of the policy MLP's mean path, input to output (NumPy)."""
+def policy_layers(config: TrainConfig, params: ppo_losses.PPONetworkParams) -> list[tuple]:
+    """[(kernel, bias), ...] of the policy MLP's mean path, input to output (NumPy), its head
+    times the action scale: the exported network outputs the action the map takes."""
     tree = jax.device_get(params.policy)["params"]
     hidden = tree["MLP_0"]
     layers = [
         (hidden[f"hidden_{i}"]["kernel"], hidden[f"hidden_{i}"]["bias"]) for i in range(len(hidden))
     ]
-    layers.append((tree["Dense_0"]["kernel"], tree["Dense_0"]["bias"]))
+    m = action_transform(config)
+    layers.append((tree["Dense_0"]["kernel"] @ m, tree["Dense_0"]["bias"] @ m))
     return layers
 
 
 def deterministic_actions(config: TrainConfig, state: TrainingState, obs: jax.Array):
-    """(B, 38) the JAX policy's deterministic action (Brax's inference fn, deterministic=True).
+    """(B, 38) or (B, 47): the JAX policy's deterministic action (Brax's inference fn,
+    deterministic=True).
 
-    obs: (B, 8) policy observations; the critic's input is not used by the policy.
+    obs: (B, n) policy observations in the run's layout; the critic's input is not used by the
+    policy.
     """
-    critic = jnp.zeros(obs.shape[:-1] + OBSERVATION_SIZE["privileged_state"], obs.dtype)
+    critic = jnp.zeros(obs.shape[:-1] + observation_sizes(config.observation)["privileged_state"],
+                       obs.dtype)  # fmt: skip
     obs = {"state": obs, "privileged_state": critic}
     networks = make_networks(config)
     policy = ppo_networks.make_inference_fn(networks)(
         (state.normalizer_params, state.params.policy, state.params.value), deterministic=True
     )
-    return policy(obs, jax.random.PRNGKey(0))[0]
+    return to_map_action(config, policy(obs, jax.random.PRNGKey(0))[0])

@@ -41,14 +41,19 @@ METRICS_COLUMNS = (
     "entropy_loss",
     "kl",
     "policy_std",
+    "learning_rate",
 )
 TRIALS_COLUMNS = ("trial", "return", "success", "time_s")
+# eval.csv: the policy's mean on the held-out trials (TrainConfig.eval_every)
+EVAL_COLUMNS = ("iteration", "trials", "success_rate", "mean_return", "time_to_complete_s",
+                "protective_stop_rate")  # fmt: skip
 # metrics.csv columns added after runs were made, each after another: (name, after)
 _ADDED_METRICS = (
     ("settled_rate", "unstable_rate"),
     ("protective_stop_rate", "settled_rate"),
     ("peak_force_median_n", "protective_stop_rate"),
     ("chatter_median_n", "peak_force_median_n"),
+    ("learning_rate", "policy_std"),
 )
 KEEP_CHECKPOINTS = 3
 
@@ -58,12 +63,28 @@ def _recorded(doc: dict) -> dict:
     return TrainConfig.from_json(doc).to_json()
 
 
-MAX_TABLE_BYTES = 2**31  # metrics.csv or trials.csv (10,000,000 trials: ~300 MB)
+MAX_TABLE_BYTES = 2**31  # metrics.csv, trials.csv or eval.csv (10,000,000 trials: ~300 MB)
 
 
 def _parses(row: list[str], width: int, index: int) -> bool:
     """Whether a table row is whole: `width` fields, an integer at `index`."""
     return len(row) == width and row[index].strip().isdigit()
+
+
+def _start_table(path: Path, columns) -> None:
+    """Write a table's header, whole or not at all (a full disk leaves no empty table)."""
+    text = io.StringIO(newline="")
+    csv.writer(text).writerow(columns)
+    outdir.write_atomic(path, text.getvalue())
+
+
+def _append_rows(path: Path, rows: list[list]) -> None:
+    """Append rows to a table; a full disk's error names the table."""
+    try:
+        with open(path, "a", newline="") as f:
+            csv.writer(f).writerows(rows)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, str(path)) from None
 
 
 class RunDir:
@@ -78,6 +99,8 @@ class RunDir:
         self.policy_path = self.path / POLICY_FILE
         self.manifest_path = self.path / MANIFEST_FILE
         self.curve_path = self.path / "training_curve.png"
+        self.eval_path = self.path / "eval.csv"
+        self.tensorboard_dir = self.path / "tensorboard"
         self.out = OutDir(self.path, self.config_path.name, "training run", read=_recorded)
 
     def is_finished(self) -> bool:
@@ -123,25 +146,27 @@ class RunDir:
         return Checkpoints(self.checkpoint_dir, keep=KEEP_CHECKPOINTS)
 
     def start_tables(self) -> None:
-        tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS))
-        for path, columns in tables:  # whole or not at all: a full disk leaves no empty table
-            text = io.StringIO(newline="")
-            csv.writer(text).writerow(columns)
-            outdir.write_atomic(path, text.getvalue())
+        for path, columns in self._columns().items():
+            _start_table(path, columns)
 
     def truncate_tables(self, trials: int) -> None:
         """Drop rows written after the checkpoint that holds `trials` trials."""
-        for path in (self.metrics_path, self.trials_path):
+        columns = self._columns()
+        for path in columns:
             if path.exists() or path.is_symlink():
                 inputs.regular_file(path)  # a FIFO or folder there: one line, never replaced
         if not (self.metrics_path.is_file() and self.trials_path.is_file()):
             self.start_tables()
             return
-        for path, column in ((self.metrics_path, "trials"), (self.trials_path, "trial")):
+        if not self.eval_path.is_file():  # a run from before the held-out evaluation
+            _start_table(self.eval_path, EVAL_COLUMNS)
+        tables = ((self.metrics_path, "trials"), (self.trials_path, "trial"),
+                  (self.eval_path, "trials"))  # fmt: skip
+        for path, column in tables:
             try:
                 rows = list(csv.reader(io.StringIO(inputs.read_text(path, MAX_TABLE_BYTES))))
                 if not rows:  # an empty table (a full disk before its header): start it again
-                    rows = [list(METRICS_COLUMNS if path == self.metrics_path else TRIALS_COLUMNS)]
+                    rows = [list(columns[path])]
                 header, body = rows[0], rows[1:]
                 if path == self.metrics_path:  # an older run: columns added since, left empty
                     for name, after in _ADDED_METRICS:
@@ -165,9 +190,14 @@ class RunDir:
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
         """Append an iteration's rows (a resume cuts off rows a failed append left behind)."""
-        for path, rows in ((self.trials_path, trial_rows), (self.metrics_path, [metrics_row])):
-            try:
-                with open(path, "a", newline="") as f:
-                    csv.writer(f).writerows(rows)
-            except OSError as e:  # a full disk: the error names the table
-                raise OSError(e.errno, e.strerror, str(path)) from None
+        _append_rows(self.trials_path, trial_rows)
+        _append_rows(self.metrics_path, [metrics_row])
+
+    def append_eval(self, row: list) -> None:
+        """Append a held-out evaluation's row."""
+        _append_rows(self.eval_path, [row])
+
+    def _columns(self) -> dict[Path, tuple[str, ...]]:
+        """Each table of the run and its columns."""
+        return {self.metrics_path: METRICS_COLUMNS, self.trials_path: TRIALS_COLUMNS,
+                self.eval_path: EVAL_COLUMNS}  # fmt: skip

@@ -26,9 +26,11 @@ from mjx_peg.learn import checkpoints, ppo
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import plot_training_curve, running_mean
-from mjx_peg.learn.env import PRIVILEGED_SIZE, InsertionEnv
+from mjx_peg.learn.env import InsertionEnv
+from mjx_peg.learn.monitor import Board, HeldOut
 from mjx_peg.learn.run_dir import RunDir
 from mjx_peg.policy.export import PolicyError, load_policy, save_policy
+from mjx_peg.policy.observation import PRIVILEGED_NAMES
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,14 @@ def load_init(config: TrainConfig, template: ppo.TrainingState) -> ppo.TrainingS
         raise UsageError(f"--init-from {source.path} is not a directory")
     other = source.read_config()
     has_checkpoint = checkpoints.has_steps(source.checkpoint_dir)  # else its critic is not used
+    # a run of another action size starts from its export (`_from_export` widens 38 to 47)
+    has_checkpoint = has_checkpoint and other.action_size == config.action_size
     critic_differs = has_checkpoint and other.value_hidden != config.value_hidden
+    if other.observation != config.observation:
+        raise UsageError(
+            f"--init-from {source.path} observes the {other.observation} layout, this run the "
+            f"{config.observation} one"
+        )
     if other.policy_hidden != config.policy_hidden or critic_differs:
         raise UsageError(
             f"--init-from {source.path} has networks {other.policy_hidden}/{other.value_hidden}, "
@@ -94,13 +103,27 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
     except PolicyError as e:
         raise UsageError(f"--init-from {source.path} holds no checkpoint, and {e}") from None
     *hidden, head = [{"kernel": jnp.asarray(k), "bias": jnp.asarray(b)} for k, b in policy.layers]
+    width = head["bias"].shape[0]
+    if width < config.action_size:  # a policy of the 38 alone: its search starts at the prior
+        extra = config.action_size - width
+        head = {
+            "kernel": jnp.concatenate([head["kernel"], jnp.zeros((len(head["kernel"]), extra))], 1),
+            "bias": jnp.concatenate([head["bias"], jnp.asarray(ppo.prior_action(config)[width:])]),
+        }
+    elif width > config.action_size:
+        raise UsageError(
+            f"--init-from {source.path} outputs {width} numbers, this run learns "
+            f"{config.action_size}: train with the search's constants learned"
+        )
+    # the export outputs the map's action; this run's network acts in its own units
+    head = {k: ppo.from_map_action(config, np.asarray(v)) for k, v in head.items()}
     tree = {
         **template.params.policy["params"],
         "MLP_0": {f"hidden_{i}": layer for i, layer in enumerate(hidden)},
         "Dense_0": head,
     }
     params = template.params.replace(policy={"params": tree})
-    extra = PRIVILEGED_SIZE - policy.obs_mean.size
+    extra = len(PRIVILEGED_NAMES)
     mean = {
         "state": policy.obs_mean,
         "privileged_state": np.concatenate([policy.obs_mean, np.zeros(extra, np.float32)]),
@@ -124,11 +147,20 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
     )
 
 
+def _draw_curve(run: RunDir, config: TrainConfig) -> None:
+    """Redraw training_curve.png from the run's tables (every iteration: a curve to watch)."""
+    title = f"{config.preset}: {run.path.name}"
+    outdir.write_atomic(
+        run.curve_path,
+        lambda p: plot_training_curve(run.trials_path, p, title, run.metrics_path, run.eval_path),
+    )
+
+
 def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished: bool):
     norm = state.normalizer_params
     save_policy(
         run.path,
-        ppo.policy_layers(state.params),
+        ppo.policy_layers(config, state.params),
         np.asarray(norm.mean["state"]),
         np.asarray(norm.std["state"]),
         config.to_json(),
@@ -139,10 +171,6 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
             "wall_s": float(state.wall_s),
             "trainer": "brax PPO (mjx_peg/learn/ppo.py)",
         },
-    )
-    title = f"{config.preset}: {run.path.name}"
-    outdir.write_atomic(
-        run.curve_path, lambda p: plot_training_curve(run.trials_path, p, title=title)
     )
 
 
@@ -155,8 +183,10 @@ def train(
     stop_after_iterations: int | None = None,
     engine_options: dict | None = None,
     note: Callable[[str], None] | None = None,
+    tensorboard: bool = False,
 ) -> TrainSummary:
-    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests).
+    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests);
+    `tensorboard` writes every metric to RUN_DIR/tensorboard as well (`monitor.Board`).
 
     Everything is checked before `out` is touched: what `out` holds (RunDir.plan), that it is
     not --init-from's run, and the --init-from checkpoint itself. With `force` an earlier run in
@@ -182,9 +212,9 @@ def train(
         run.prepare(config, plan, note)
     if jax.process_count() > 1:
         jax.experimental.multihost_utils.sync_global_devices("run dir prepared")
-    env = InsertionEnv(
-        config.task(), config.trial(), config.engine, engine_options, config.map_centre()
-    )
+    env = InsertionEnv(config.task(), config.trial(), config.engine, engine_options,
+                       config.map_centre(), config.observation, config.action_size,
+                       ppo.action_transform(config))  # fmt: skip
     manager = run.checkpoints()
     if primary:
         manager.drop_partial()
@@ -199,6 +229,10 @@ def train(
     else:
         if config.init_from:
             state = initial if initial is not None else load_init(config, state)
+        elif config.obs_statistics == "context":
+            state = state.replace(
+                normalizer_params=ppo.context_statistics(config, state.normalizer_params)
+            )
         if primary:
             run.start_tables()
     step = ppo.make_iteration(env, config)
@@ -220,6 +254,8 @@ def train(
 
         recent = np.asarray(read_table(run.trials_path)["return"][-100:], dtype=np.float64)
     saved, recorded = int(state.iteration), state
+    held_out = HeldOut(config, engine_options) if config.eval_every and primary else None
+    board = Board(run.tensorboard_dir, tensorboard and primary, int(state.trials))
     try:
         while int(state.iteration) < config.iterations:
             t0 = time.monotonic()
@@ -245,26 +281,31 @@ def train(
             first = n - config.num_envs
             succ = trials["success"] > 0.5
             times = trials["time_s"][succ]
+            # metrics.csv's columns after iteration and trials (run_dir.METRICS_COLUMNS), wall_s
+            # aside: TensorBoard's training/... scalars
+            values = {
+                "mean_return": trials["return"].mean(),
+                "success_rate": succ.mean(),
+                "time_to_complete_s": times.mean() if times.size else np.nan,
+                "unstable_rate": (trials["unstable"] > 0.5).mean(),
+                "settled_rate": (trials["settled"] > 0.5).mean(),
+                "protective_stop_rate": (trials["protective_stop"] > 0.5).mean(),
+                "peak_force_median_n": np.median(trials["peak_force"]),
+                "chatter_median_n": np.median(trials["chatter"]),
+                "trials_per_s": config.num_envs / (now - t0),
+                "policy_loss": metrics["policy_loss"],
+                "value_loss": metrics["v_loss"],
+                "entropy_loss": metrics["entropy_loss"],
+                "kl": metrics["kl_mean"],
+                "policy_std": metrics["policy_dist_mean_std"],
+                "learning_rate": metrics["learning_rate"],
+            }
+            values = {k: float(v) for k, v in values.items()}
+            formats = (".2f", ".4f", ".4f", ".4f", ".4f", ".4f", ".2f", ".3f", ".2f") + (".5g",) * 6
+            cells = [format(v, f) if np.isfinite(v) else "" for v, f in
+                     zip(values.values(), formats, strict=True)]  # fmt: skip
             row = (
-                [
-                    int(state.iteration),
-                    n,
-                    f"{trials['return'].mean():.2f}",
-                    f"{succ.mean():.4f}",
-                    f"{times.mean():.4f}" if times.size else "",
-                    f"{(trials['unstable'] > 0.5).mean():.4f}",
-                    f"{(trials['settled'] > 0.5).mean():.4f}",
-                    f"{(trials['protective_stop'] > 0.5).mean():.4f}",
-                    f"{np.median(trials['peak_force']):.2f}",
-                    f"{np.median(trials['chatter']):.3f}",
-                    f"{wall:.2f}",
-                    f"{config.num_envs / (now - t0):.2f}",
-                    f"{float(metrics['policy_loss']):.5g}",
-                    f"{float(metrics['v_loss']):.5g}",
-                    f"{float(metrics['entropy_loss']):.5g}",
-                    f"{float(metrics['kl_mean']):.5g}",
-                    f"{float(metrics['policy_dist_mean_std']):.5g}",
-                ],
+                [int(state.iteration), n] + cells[:8] + [f"{wall:.2f}"] + cells[8:],
                 [
                     [first + i, f"{r:.2f}", int(s), f"{t:.4f}" if s else ""]
                     for i, (r, s, t) in enumerate(
@@ -272,12 +313,19 @@ def train(
                     )
                 ],
             )
+            finished = int(state.iteration) >= config.iterations
             if primary:
                 run.append(*row)
+                board.scalars("training", values, n)
+                due = config.eval_every and int(state.iteration) % config.eval_every == 0
+                if held_out is not None and (due or finished):
+                    held = held_out.evaluate(state)
+                    run.append_eval([int(state.iteration), n] + [f"{v:.4f}" for v in held.values()])
+                    board.scalars("eval", held, n)
+                _draw_curve(run, config)
             recorded = state  # its trials are in trials.csv: what an interrupt keeps
             last = trials
             recent = np.concatenate([recent, trials["return"]])[-100:]
-            finished = int(state.iteration) >= config.iterations
             if finished or now - last_save >= checkpoint_every_s:
                 _save(manager, state)
                 saved, last_save = int(state.iteration), time.monotonic()
@@ -297,6 +345,7 @@ def train(
         if bar is not None:
             bar.close()
         manager.close()
+        board.close()
     finished = int(state.iteration) >= config.iterations
     if finished and primary:
         _export(run, config, state, finished=True)

@@ -1,7 +1,8 @@
 """The portable policy export: `policy.npz` + `manifest.json`, loaded with NumPy alone.
 
 A run directory's policy is plain arrays (`policy.npz`, read with allow_pickle=False) and a JSON
-manifest that says what they mean: schema version, observation names and normalization, layer
+manifest that says what they mean: schema version, observation layout (`observation.LAYOUTS`:
+manifests without one are `names`), its feature names and normalization, layer
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
 without a map used), the skill to run it with (its name and every constant: the skill its
@@ -11,6 +12,7 @@ truncated or inconsistent. No JAX is imported here: the real robot runs this.
 
     policy = load_policy("runs/quick")
     vectors = policy.controller_vectors(specs)   # (B, 38) [k_t, k_theta, C row-major]
+    obs = policy.observe(shape_id, size, hole_scale, hole_est_pos, hole_est_yaw)  # its layout
 """
 
 from __future__ import annotations
@@ -42,13 +44,15 @@ class PolicyError(UsageError):
 
 @dataclasses.dataclass(frozen=True)
 class Policy:
-    """A deterministic policy: observation -> action -> 38 physical controller numbers."""
+    """A deterministic policy: observation -> action -> 38 physical controller numbers, and the
+    contact search's 9 learned constants where it learned them (47)."""
 
     layers: tuple[tuple[np.ndarray, np.ndarray], ...]
     obs_mean: np.ndarray
     obs_std: np.ndarray
     manifest: dict
-    centre: np.ndarray | None = None  # (38,) the centred map's centre; None: the sigmoid map
+    centre: np.ndarray | None = None  # (38,) or (47,) the centred map's centre; None: sigmoid
+    layout: str = "names"  # its observation layout (observation.LAYOUTS)
 
     @property
     def skill(self) -> NamedSkill:
@@ -71,15 +75,30 @@ class Policy:
         return tuple(float(s) for s in self.manifest.get("config", {}).get("size_mm", ()))
 
     def act(self, obs) -> np.ndarray:
-        """(B, 38) unbounded action (the network's mean) for (B, 8) observations."""
-        return network.mean_action(self.layers, self.obs_mean, self.obs_std, np.asarray(obs))
+        """(B, 38) unbounded action (the network's mean) for (B, n) observations."""
+        obs = np.asarray(obs)
+        width = len(observation.LAYOUTS[self.layout])
+        if obs.shape[-1:] != (width,):
+            raise UsageError(
+                f"the policy reads {width} observation numbers (its {self.layout} layout), "
+                f"got an array of shape {obs.shape}"
+            )
+        return network.mean_action(self.layers, self.obs_mean, self.obs_std, obs)
+
+    def observe(self, shape_id, size, hole_scale, hole_est_pos, hole_est_yaw) -> np.ndarray:
+        """(B, n) observations in this policy's layout (`observation.observe_part`) of (B,) parts
+        (shape ids, sizes S in m, hole scales) and their estimated holes ((B, 2) x, y; (B,) yaw)."""
+        return observation.observe_part(self.layout, np.asarray(shape_id), np.asarray(size),
+                                        np.asarray(hole_scale), np.asarray(hole_est_pos),
+                                        np.asarray(hole_est_yaw))  # fmt: skip
 
     def controller_vectors(self, specs) -> np.ndarray:
         """(B, 38) physical parameter vectors for the trials of a `TrialSpec`."""
-        return self.vectors_for(observation.observe_specs(specs))
+        return self.vectors_for(observation.observe_specs(specs, self.layout))
 
     def vectors_for(self, obs) -> np.ndarray:
-        """(B, 38) physical parameter vectors for (B, 8) observations (`observation.observe`)."""
+        """(B, 38) physical parameter vectors for (B, n) observations in this policy's layout
+        (`observe`)."""
         vectors = network.controller_vector(self.act(obs), self.centre)
         return np.asarray(vectors, dtype=np.float64)
 
@@ -89,6 +108,7 @@ def _ranges_json(ranges: params.ParamRanges, centre) -> dict:
         "k_t": list(ranges.k_t),
         "k_theta": list(ranges.k_theta),
         "compliance_bound": [list(row) for row in ranges.compliance_bound()],
+        "search": {name: list(params.SEARCH_RANGES[name]) for name in params.LEARNED_NAMES[38:]},
     }
     if centre is None:
         return {
@@ -116,7 +136,7 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
     if kind == "sigmoid":
         return None
     if kind != "centred":
-        raise PolicyError(f"{where}: unknown action map {kind!r}")
+        raise PolicyError(f"{where}: unknown action map {str(kind)[:40]!r}")
     try:
         return params.check_centre(ranges["centre"])
     except (ValueError, TypeError) as e:
@@ -143,9 +163,21 @@ def save_policy(
     extra: dict | None = None,
     centre=None,
     skill: NamedSkill | None = None,
+    layout: str | None = None,
 ) -> Path:
-    """Write `policy.npz` + `manifest.json` into run_dir, each atomically. `skill`: the skill to
-    run it with (default: the one `config` trained with)."""
+    """Write `policy.npz` + `manifest.json` into run_dir, each atomically; the network outputs
+    38 numbers (the controller) or 47 (and the contact search's constants). `skill`: the skill to
+    run it with (default: the one `config` trained with); `layout`: its observation layout
+    (default: the one `config` names, `TrainConfig.observation`)."""
+    size = int(np.shape(layers[-1][0])[1])
+    if size not in (params.N_PARAMS, params.N_LEARNED):
+        raise ValueError(f"a policy outputs {params.N_PARAMS} or {params.N_LEARNED} numbers")
+    layout = observation.check_layout(layout or file_versions.train_config(config)["observation"])
+    width = len(observation.LAYOUTS[layout])
+    assert np.shape(layers[0][0])[0] == width == np.size(obs_mean) == np.size(obs_std), (
+        f"a policy of the {layout} layout reads {width} numbers: its first layer and the "
+        "observation statistics must match"
+    )
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     arrays = {
@@ -159,7 +191,8 @@ def save_policy(
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
         "observation": {
-            "names": list(observation.OBS_NAMES),
+            "layout": layout,
+            "names": list(observation.LAYOUTS[layout]),
             "normalization": "(obs - obs_mean) / obs_std, arrays in policy.npz",
             "definition": "mjx_peg/policy/observation.py",
         },
@@ -169,8 +202,9 @@ def save_policy(
             "output": "mean action; deterministic policy (Brax PPO, normal distribution)",
         },
         "action": {
-            "size": params.N_PARAMS,
-            "param_names": list(params.PARAM_NAMES),
+            "size": size,
+            "param_names": list(params.LEARNED_NAMES[:size]),
+            "units": list(params.LEARNED_UNITS[:size]),
             "ranges": _ranges_json(params.DEFAULT_RANGES, centre),
         },
         "skill": (skill or trained_skill(config)).record(),
@@ -275,6 +309,7 @@ def load_policy(path) -> Policy:
     try:
         shapes = [tuple(s) for s in manifest["network"]["layers"]]
         names = manifest["observation"]["names"]
+        layout = manifest["observation"].get("layout", file_versions.MANIFEST_OBSERVATION)
         activation = manifest["network"]["activation"]
         centre = _map_centre(manifest, manifest_path)
     except (KeyError, TypeError) as e:
@@ -283,26 +318,35 @@ def load_policy(path) -> Policy:
         _run_skill(manifest)
     except (UsageError, KeyError, TypeError) as e:
         raise PolicyError(f"{manifest_path}: its skill is not readable ({e})") from None
-    if names != list(observation.OBS_NAMES):
+    if not isinstance(layout, str) or layout not in observation.LAYOUTS:
+        raise PolicyError(f"{manifest_path}: unknown observation layout {str(layout)[:40]!r}")
+    expected = observation.LAYOUTS[layout]
+    if names != list(expected):
         raise PolicyError(
-            f"{manifest_path}: observation.names is not {', '.join(observation.OBS_NAMES)}"
+            f"{manifest_path}: observation.names is not the {layout} layout's "
+            f"({', '.join(expected)})"
         )
     if activation != ACTIVATION:
         raise PolicyError(f"{manifest_path}: unsupported activation")
-    width = observation.OBS_SIZE
+    width = len(expected)
     for i, shape in enumerate(shapes):
         if shape[0] != width:
+            before = "the one before" if i else f"the {layout} observation layout"
             raise PolicyError(
-                f"{manifest_path}: layer {i} takes {shape[0]} inputs, the one before gives {width}"
+                f"{manifest_path}: layer {i} takes {shape[0]} inputs, {before} gives {width}"
             )
         width = shape[1]
-    if width != params.N_PARAMS:
+    if width not in (params.N_PARAMS, params.N_LEARNED):
         raise PolicyError(
-            f"{manifest_path}: the network outputs {width} numbers, not {params.N_PARAMS}"
+            f"{manifest_path}: the network outputs {width} numbers, not {params.N_PARAMS} or "
+            f"{params.N_LEARNED}"
         )
+    if centre is not None and centre.shape != (width,):
+        raise PolicyError(f"{manifest_path}: the map's centre has {centre.size} numbers, the "
+                          f"network outputs {width}")  # fmt: skip
     members = {
-        "obs_mean": inputs.Member("f", (observation.OBS_SIZE,)),
-        "obs_std": inputs.Member("f", (observation.OBS_SIZE,)),
+        "obs_mean": inputs.Member("f", (len(expected),)),
+        "obs_std": inputs.Member("f", (len(expected),)),
     }
     for i, shape in enumerate(shapes):
         members[f"layer{i}_kernel"] = inputs.Member("f", shape)
@@ -314,4 +358,4 @@ def load_policy(path) -> Policy:
     obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
     if np.any(obs_std <= 0):
         raise PolicyError(f"{npz_path}: obs_std holds values <= 0")
-    return Policy(layers, obs_mean, obs_std, manifest, centre)
+    return Policy(layers, obs_mean, obs_std, manifest, centre, layout)

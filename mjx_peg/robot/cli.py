@@ -42,6 +42,8 @@ SKILL_FILE = "skill.json"  # the skill the runs ran: {"name", "constants"}
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.world.task import HOLE_SCALE_HELP
+
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument(
         "--policy",
@@ -50,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--shape", choices=constants.SHAPES, default="circle")
     p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="size S (default 50)")
+    p.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=2.0, help="± linear error range")
     p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0, help="± angular error range")
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
@@ -145,11 +148,12 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
 
 
 def _setup(args):
-    from mjx_peg.world.task import TaskConfig
+    from mjx_peg.world.task import TaskConfig, parse_hole_scale
 
     steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
-                                  grasp_model=args.grasp_model)  # fmt: skip
+                                  grasp_model=args.grasp_model,
+                                  hole_scale=parse_hole_scale(args.hole_scale))  # fmt: skip
     if not args.policy:
         raise UsageError("--policy must be a run directory or baseline, got an empty string")
     args.policy = resolve_policy(args.policy)
@@ -208,6 +212,7 @@ def _simulate(args, task, steps: int, policy) -> int:
     from mjx_peg.outdir import write_json
     from mjx_peg.policy.export import choose_skill
     from mjx_peg.robot import runtime, sim_arm
+    from mjx_peg.world.parts import fit_text
     from mjx_peg.world.task import sample_trials
 
     results = args.out / RESULTS
@@ -278,9 +283,11 @@ def _simulate(args, task, steps: int, policy) -> int:
         if rows
         else "-"
     )
+    fit = fit_text(args.shape, task.hole_scale_range(args.shape)[0])
     print(
         f"{args.policy} on the simulated arm at {PHYSICS_HZ / steps:g} Hz commands, "
-        f"{args.shape} {args.size:g} mm, ±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
+        f"{args.shape} {args.size:g} mm{fit}, "
+        f"±{args.linear_mm:g} mm / ±{args.angular_deg:g} deg: "
         f"{int(ok.sum())}/{len(rows)} inserted ({100 * ok.mean():.1f} %), median time {median}, "
         f"{stops} stops ({protective} protective, {settled} settled); {contact}; "
         f"{time.perf_counter() - start:.0f} s wall; wrote {results}"

@@ -39,6 +39,7 @@ from mjx_peg.skill import sensor
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.control_step import make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
+from mjx_peg.skill.search import for_part
 from mjx_peg.world import constants
 from mjx_peg.world.task import goal_pose
 
@@ -49,50 +50,64 @@ class SafetyStop(RuntimeError):
 
 @dataclasses.dataclass(frozen=True)
 class HoleEstimate:
-    """Where the skill believes the hole is: centre x, y (m), yaw (rad), shape, size S (m)."""
+    """Where the skill believes the hole is and what part it takes: centre x, y (m), yaw (rad),
+    shape, size S (m) and the hole's clearance, hole size / peg size (None: the shape's paper
+    fit, constants.HOLE_SCALE)."""
 
     x: float
     y: float
     yaw: float
     shape: str
     size: float
+    hole_scale: float | None = None
 
     def __post_init__(self):
         if self.shape not in constants.SHAPES:
             raise UsageError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
-        for name in ("x", "y", "yaw", "size"):
+        if self.hole_scale is None:
+            object.__setattr__(self, "hole_scale", constants.HOLE_SCALE[self.shape])
+        for name in ("x", "y", "yaw", "size", "hole_scale"):
             if not math.isfinite(getattr(self, name)):
                 raise UsageError(
                     f"hole {name} must be a finite number, got {getattr(self, name)!r}"
                 )
         if self.size <= 0:
             raise UsageError(f"hole size must be positive (m), got {self.size!r}")
+        lo, hi = constants.HOLE_SCALE_RANGE
+        if not lo <= self.hole_scale <= hi:
+            raise UsageError(
+                f"hole scale (hole size / peg size) must lie in [{lo:g}, {hi:g}], "
+                f"got {self.hole_scale!r}"
+            )
 
     @classmethod
     def of_trial(cls, specs, index: int) -> HoleEstimate:
-        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw, shape, size)."""
+        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw and part)."""
         x, y = (float(v) for v in specs.hole_est_pos[index])
         shape = constants.SHAPES[int(specs.shape_id[index])]
-        return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]))
+        return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]),
+                   float(specs.hole_scale[index]))  # fmt: skip
 
-    def observation(self) -> np.ndarray:
-        """(1, 8) policy observation of this estimate."""
-        return observation.observe(
+    def observation(self, layout: str = "names") -> np.ndarray:
+        """(1, n) policy observation of this estimate in `layout` (observation.LAYOUTS)."""
+        return observation.observe_part(
+            layout,
             np.array([constants.SHAPES.index(self.shape)]),
             np.array([self.size]),
+            np.array([self.hole_scale]),
             np.array([[self.x, self.y]]),
             np.array([self.yaw]),
         )
 
 
 def controller_vector(policy: str | Policy, hole: HoleEstimate) -> np.ndarray:
-    """(38,) controller numbers for `hole` from a loaded `Policy`, a run directory holding
-    policy.npz, or 'baseline'."""
+    """(38,) controller numbers for `hole` from a loaded `Policy` (in its observation layout), a
+    run directory holding policy.npz, or 'baseline'."""
     if isinstance(policy, str):
         if policy == "baseline":
             return baseline_params()
         policy = load_policy(policy)
-    return policy.vectors_for(hole.observation())[0]
+    return policy.vectors_for(hole.observation(policy.layout))[0]
 
 
 class SkillRuntime:
@@ -102,7 +117,8 @@ class SkillRuntime:
     def __init__(self, vector, hole: HoleEstimate, config: TrialConfig | None = None):
         self.config = cfg = config or TrialConfig()
         p = as_controller_params(vector, 1)
-        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0])
+        # the search's learned constants, where the vector has them, stay (1,) arrays
+        self.params = ControllerParams(p.k_t[0], p.k_theta[0], p.compliance[0], p.search)
         self.hole = hole
         self.basis = fitted_basis(cfg.movement)
         self.goal_pos, self.goal_rot = goal_pose(np.array([[hole.x, hole.y]]), np.array([hole.yaw]))
@@ -123,7 +139,9 @@ class SkillRuntime:
         cfg = self.config
         tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
-        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau)
+        search = for_part(cfg.search, self.params.search, cfg.movement.duration,
+                          np.array([self.hole.size]))  # fmt: skip
+        skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau, search)
         # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
         # the software filter only, its pole for the command's period.
         ft = sensor.filter_params(cfg.sensor, cfg.timestep, np.zeros(1, np.uint32),

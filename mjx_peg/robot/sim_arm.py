@@ -53,7 +53,8 @@ class SimArm:
         s = specs.take([index])
         self.size = float(s.size[0])
         (self.hole_origin,), (self.hole_axis,) = hole_frame(s)
-        self.model = m = scene.load_model(constants.SHAPES[int(s.shape_id[0])], self.size)
+        shape = constants.SHAPES[int(s.shape_id[0])]
+        self.model = m = scene.load_model(shape, self.size, float(s.hole_scale[0]))
         self.data = d = mujoco.MjData(m)
         self.ids = ids = scene.scene_ids(m)
         scene.start_trial(s, 0, m, d, ids)

@@ -34,7 +34,14 @@ from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
 from mjx_peg.skill.control_step import start_state
 from mjx_peg.world import constants
-from mjx_peg.world.task import TaskConfig, feasible_configuration, goal_pose
+from mjx_peg.world.parts import fit_text
+from mjx_peg.world.task import (
+    TaskConfig,
+    feasible_configuration,
+    goal_pose,
+    hole_scale_of,
+    parse_hole_scale,
+)
 
 START_HEIGHT = 0.06  # m: the tip's start above the board top (the sampler's 40-80 mm, centred)
 MOVE_SPEED, MOVE_ACCEL = 0.25, 0.5  # rad/s, rad/s^2: moveJ to the start
@@ -112,7 +119,8 @@ def print_plan(p: dict, hole: HoleEstimate, every_s: float = 0.25) -> None:
 
     deg = ", ".join(f"{math.degrees(v):.1f}" for v in p["q_start"])
     print(
-        f"plan for the {hole.shape} {1000 * hole.size:g} mm hole at {mm([hole.x, hole.y])}, "
+        f"plan for the {hole.shape} {1000 * hole.size:g} mm hole"
+        f"{fit_text(hole.shape, hole.hole_scale)} at {mm([hole.x, hole.y])}, "
         f"yaw {math.degrees(hole.yaw):.1f} deg:"
     )
     print(f"  move (moveJ) to the start {mm(p['start_pos'])}, tool down: q = ({deg}) deg")
@@ -136,6 +144,7 @@ def rehearsal_robot(hole: HoleEstimate, q_start, seed: int):
         dict(
             shape_id=[constants.SHAPES.index(hole.shape)],
             size=[hole.size],
+            hole_scale=[hole.hole_scale],
             board_pos=one(hole.x, hole.y),
             board_yaw=[hole.yaw],
             friction=[0.5],
@@ -258,7 +267,8 @@ def run(args, prog: str) -> int:
             "leave --command-hz at 500"
         )
     x, y, yaw = parse_hole(args.hole)
-    hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0)
+    scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
+    hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0, scale)
     given, args.policy = args.policy, resolve_policy(args.policy)
     policy = args.policy
     if policy != "baseline":

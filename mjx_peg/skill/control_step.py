@@ -55,7 +55,7 @@ from typing import NamedTuple
 
 from mjx_peg.skill import dmp, osc
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.search import SkillConfig, bounded_press, searched_offset
+from mjx_peg.skill.search import SearchValues, SkillConfig, bounded_press, searched_offset
 
 
 class SkillConsts(NamedTuple):
@@ -67,6 +67,9 @@ class SkillConsts(NamedTuple):
     k_y: object  # (..., 6) diagonal of K_y
     d_y: object  # (..., 6) diagonal of D_y (critical damping)
     compliance: object  # (..., 6, 6) C = K_c^-1
+    # the contact search's learned constants of each trial (`search.SearchValues`, (...,) each);
+    # None: the skill config's
+    search: SearchValues | None = None
 
 
 class Basis(NamedTuple):
@@ -77,11 +80,13 @@ class Basis(NamedTuple):
     widths: object  # (n_basis,)
 
 
-def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float) -> SkillConsts:
-    """Per-trial constants from the learned parameters and the goal; D_y for critical damping."""
+def make_skill(params: ControllerParams, goal_pos, goal_rot, y0, tau: float,
+               search: SearchValues | None = None) -> SkillConsts:  # fmt: skip
+    """Per-trial constants from the learned parameters and the goal; D_y for critical damping;
+    search: the contact search's learned constants (None: the skill config's)."""
     k_y = dmp.stiffness_diag(params.k_t, params.k_theta)
     return SkillConsts(
-        goal_pos, goal_rot, y0, k_y, dmp.critical_damping(k_y, tau), params.compliance
+        goal_pos, goal_rot, y0, k_y, dmp.critical_damping(k_y, tau), params.compliance, search
     )
 
 
@@ -165,6 +170,9 @@ class ControlConfig(NamedTuple):
     moment_deadband: float = 0.0
     # the contact search (skill/search.py); the default, all off: the paper's skill
     search: SkillConfig = SkillConfig()
+    # s: the duration T of the movement the forcing term was fitted to (`dmp.DMPConfig`); a
+    # trial whose learned duration differs runs the fitted movement's phase at T / T_trial
+    movement_s: float = 2.0
 
 
 def _shrink(v, width: float):
@@ -193,13 +201,18 @@ def skill_torque(config: ControlConfig, skill: SkillConsts, basis: Basis, meas: 
     with the contact search of `config.search` where it is on (skill/search.py)."""
     tcp_vel = (meas.jac @ meas.qvel[..., None])[..., 0]
     y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
-    s = dmp.phase(meas.t, config.tau, config.alpha_s)
+    t = meas.t
+    if skill.search is not None:  # the fitted movement played at the trial's duration
+        t = t * (config.movement_s / skill.search.movement_s)
+    s = dmp.phase(t, config.tau, config.alpha_s)
     f = dmp.forcing(s, basis.weights, basis.centers, basis.widths)
     wrench = deadband(meas.wrench, config.force_deadband, config.moment_deadband)
     dy = dmp.compliance_offset(skill.compliance, wrench)
     if config.search.active:
         height = -y[..., 2]  # the tcp over the goal (goal z points down, into the hole)
-        dy = searched_offset(config.search, dy, wrench, meas.aligned, meas.spiral, height)
+        dy = searched_offset(
+            config.search, dy, wrench, meas.aligned, meas.spiral, height, skill.search
+        )
     goal = 0.0 * skill.y0  # the goal is the origin of the goal frame
     g_m = dmp.scaled_modified_goal(goal, skill.y0, f, config.k_ref, dy)
     ydd_task = dmp.dmp_acceleration(y, yd, g_m, skill.k_y, skill.d_y, config.tau)

@@ -1,4 +1,5 @@
-"""The 38 learned controller numbers: k_t, k_theta and the full 6x6 compliance C = K_c^-1.
+"""The learned numbers: the 38 controller numbers (k_t, k_theta, the full 6x6 compliance
+C = K_c^-1) and, where a skill learns them, the contact search's 9 constants.
 
 The policy outputs an unbounded action in R^38; a map squashes it into a valid controller (paper
 section 3.3: positive gains, compliance within physical ranges), for every input including +-1e6
@@ -43,6 +44,28 @@ Ranges (`DEFAULT_RANGES`), from the physics of a 50 mm peg in a hole with 0.75-2
   C is not symmetric in general (the paper learns the full K_c); a non-symmetric compliance is
   not conservative, which the learning is free to exploit or avoid.
 
+The contact search's constants (skill/search.py, `search.LEARNED`), where a policy learns them,
+follow the 38 in the same vector (47 numbers): the spiral's pitch p, radius R and speed v, the
+axial compliance's factor while spiralling kappa, the alignment's rate k_a and depth d_a, the
+insertion press's depth d_i and factor kappa_i, the movement's duration T. Their ranges
+(`SEARCH_RANGES`) are physical, not drawn around the hand-tuned skill:
+
+- p in [1, 25] mm (log): from below the 12 mm peg's capture width (2 sqrt(R_h^2 - R_p^2) =
+  3 mm) to the 50 mm peg's (12 mm) twice over;
+- R in [5, 50] mm (log): the localization errors' range (up to 8 mm in the paper's grids) and
+  the tip's drift, to six times that;
+- v in [5, 100] mm/s (log): a turn of a 25 mm spiral in 31 down to 1.6 s;
+- kappa in [0.5, 4] (log): the press while spiralling between twice and a quarter of C_zz's;
+- k_a in [0.1, 10] rad/(N m s) (log): the alignment following a 1 N m moment by 0.1 to 10 rad/s;
+- d_a in [0, 40] mm and d_i in [10, 70] mm below the hole's estimated entrance (linear): the
+  80 mm hole's depth, from its entrance to 10 mm above its exit;
+- kappa_i in [0.2, 1] (log): the press deep in the hole up to five times C_zz's stiffness;
+- T in [0.8, 3] s (log): the approach's movement.
+
+The compliance loop's gain scales with the axial compliance's factor; over these ranges
+(kappa up to 4 times the largest C_zz) it stays below the stable limit (skill/control_step.py,
+tests/skill/test_stability.py).
+
 Written over the array-API namespace of the inputs (NumPy or JAX, batched over `...`); imports
 neither numpy nor jax at module level.
 """
@@ -56,13 +79,29 @@ from typing import NamedTuple
 
 from mjx_peg.array_api import namespace_of
 from mjx_peg.errors import UsageError
+from mjx_peg.skill.search import LEARNED, SearchValues
 
-N_PARAMS = 38
+N_PARAMS = 38  # the controller's numbers
+N_SEARCH = len(LEARNED)  # the contact search's learnable constants
+N_LEARNED = N_PARAMS + N_SEARCH  # a policy that learns both
 OFF_DIAGONAL_FRACTION = 0.5
+# (low, high, log-scaled) of each learnable constant of the contact search (module docstring)
+SEARCH_RANGES: dict[str, tuple[float, float, bool]] = {
+    "spiral_pitch": (0.001, 0.025, True),
+    "spiral_radius": (0.005, 0.05, True),
+    "spiral_speed": (0.005, 0.1, True),
+    "spiral_axial": (0.5, 4.0, True),
+    "align_rate": (0.1, 10.0, True),
+    "align_depth": (0.0, 0.04, False),
+    "insert_depth": (0.01, 0.07, False),
+    "insert_axial": (0.2, 1.0, True),
+    "movement_s": (0.8, 3.0, True),
+}
 
 PARAM_NAMES: tuple[str, ...] = ("k_t", "k_theta") + tuple(
     f"C[{i},{j}]" for i in range(6) for j in range(6)
 )
+LEARNED_NAMES: tuple[str, ...] = PARAM_NAMES + LEARNED
 
 
 def _compliance_unit(i: int, j: int) -> str:
@@ -72,14 +111,18 @@ def _compliance_unit(i: int, j: int) -> str:
 PARAM_UNITS: tuple[str, ...] = ("1/s", "1/s") + tuple(
     _compliance_unit(i, j) for i in range(6) for j in range(6)
 )
+LEARNED_UNITS: tuple[str, ...] = PARAM_UNITS + ("m", "m", "m/s", "1", "rad/(N m s)", "m", "m", "1",
+                                                "s")  # fmt: skip
 
 
 class ControllerParams(NamedTuple):
-    """The 38 physical controller numbers (a JAX pytree); leading dims `...` shared."""
+    """The 38 physical controller numbers and, where learned, the contact search's constants (a
+    JAX pytree); leading dims `...` shared."""
 
     k_t: object  # (...,) translational stiffness of K_y, 1/s
     k_theta: object  # (...,) rotational stiffness of K_y, 1/s
     compliance: object  # (..., 6, 6) C = K_c^-1, dy = C F (units in the module docstring)
+    search: SearchValues | None = None  # (...,) each; None: the skill config's constants
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,21 +175,64 @@ def _inverse_tanh(u, xp):
 
 
 def _split_action(action, xp):
-    """(...,), (...,), (..., 6, 6) parts of a (..., 38) vector."""
-    if action.shape[-1] != N_PARAMS:
-        raise UsageError(f"expected a last axis of {N_PARAMS}, got shape {tuple(action.shape)}")
+    """(...,), (...,), (..., 6, 6) parts of a (..., 38) or (..., 47) vector, and its (..., 9)
+    search part (None for 38)."""
+    if action.shape[-1] not in (N_PARAMS, N_LEARNED):
+        raise UsageError(
+            f"expected a last axis of {N_PARAMS} or {N_LEARNED}, got shape {tuple(action.shape)}"
+        )
     shape = tuple(action.shape[:-1])
-    return action[..., 0], action[..., 1], xp.reshape(action[..., 2:], shape + (6, 6))
+    compliance = xp.reshape(action[..., 2:N_PARAMS], shape + (6, 6))
+    search = action[..., N_PARAMS:] if action.shape[-1] == N_LEARNED else None
+    return action[..., 0], action[..., 1], compliance, search
+
+
+def _search_scales(xp, dtype):
+    """low and high ends (9,) of the search constants' ranges (logs where log-scaled), and the
+    log-scaled mask (9,)."""
+    ranges = [SEARCH_RANGES[name] for name in LEARNED]
+    logged = xp.asarray([log for _, _, log in ranges])
+    lo = xp.asarray([math.log(a) if g else a for a, _, g in ranges], dtype=dtype)
+    hi = xp.asarray([math.log(b) if g else b for _, b, g in ranges], dtype=dtype)
+    return lo, hi, logged
+
+
+def _search_to_unit(values, xp):
+    """(..., 9) position of each search constant in its range, 0 low, 1 high."""
+    lo, hi, logged = _search_scales(xp, values.dtype)
+    x = xp.where(logged, xp.log(xp.where(logged, values, 1.0)), values)
+    return (x - lo) / (hi - lo)
+
+
+def _search_from_unit(u, xp):
+    """(..., 9) search constants at unit positions u (the inverse of `_search_to_unit`)."""
+    lo, hi, logged = _search_scales(xp, u.dtype)
+    x = lo + (hi - lo) * u
+    low = xp.asarray([SEARCH_RANGES[n][0] for n in LEARNED], dtype=u.dtype)
+    high = xp.asarray([SEARCH_RANGES[n][1] for n in LEARNED], dtype=u.dtype)
+    return xp.clip(xp.where(logged, xp.exp(x), x), low, high)  # clip: rounding only
+
+
+def search_from_vector(vector) -> SearchValues:
+    """SearchValues of a (..., 9) vector in `search.LEARNED` order."""
+    return SearchValues(*(vector[..., i] for i in range(N_SEARCH)))
+
+
+def vector_from_search(values: SearchValues):
+    """(..., 9) vector of SearchValues in `search.LEARNED` order."""
+    xp = namespace_of(*values)
+    return xp.stack(list(values), axis=-1)
 
 
 def controller_from_action(action, ranges: ParamRanges = DEFAULT_RANGES) -> ControllerParams:
     """ControllerParams from an unbounded action (..., 38); every finite action is valid.
 
     k = exp(log lo + (log hi - log lo) sigmoid(a)) in [lo, hi];
-    C[i,i] = b_ii sigmoid(a) in [0, b_ii]; C[i,j] = b_ij tanh(a) in [-b_ij, b_ij].
+    C[i,i] = b_ii sigmoid(a) in [0, b_ii]; C[i,j] = b_ij tanh(a) in [-b_ij, b_ij]; a search
+    constant at sigmoid(a) of its range (log-scaled where `SEARCH_RANGES` says).
     """
     xp = namespace_of(action)
-    a_kt, a_kth, a_c = _split_action(action, xp)
+    a_kt, a_kth, a_c, a_s = _split_action(action, xp)
 
     def log_scaled(a, bounds):
         lo, hi = math.log(bounds[0]), math.log(bounds[1])
@@ -156,16 +242,17 @@ def controller_from_action(action, ranges: ParamRanges = DEFAULT_RANGES) -> Cont
     bound = xp.asarray(ranges.compliance_bound(), dtype=action.dtype)
     diagonal = xp.asarray(_DIAGONAL, dtype=action.dtype) > 0.5
     compliance = bound * xp.where(diagonal, _sigmoid(a_c, xp), xp.tanh(a_c))
+    search = None if a_s is None else search_from_vector(_search_from_unit(_sigmoid(a_s, xp), xp))
     return ControllerParams(
-        log_scaled(a_kt, ranges.k_t), log_scaled(a_kth, ranges.k_theta), compliance
+        log_scaled(a_kt, ranges.k_t), log_scaled(a_kth, ranges.k_theta), compliance, search
     )
 
 
-def _unit_weight(xp, dtype):
-    """(38,) w: the sigmoid map is u = sigmoid(w a) for every number (w = 2 on the couplings,
+def _unit_weight(xp, dtype, size: int = N_PARAMS):
+    """(size,) w: the sigmoid map is u = sigmoid(w a) for every number (w = 2 on the couplings,
     whose tanh(a) = 2 sigmoid(2 a) - 1), so its slope du/da at its middle is w / 4."""
-    return xp.asarray([1.0, 1.0] + [1.0 if i == j else 2.0 for i in range(6) for j in range(6)],
-                      dtype=dtype)  # fmt: skip
+    w = [1.0, 1.0] + [1.0 if i == j else 2.0 for i in range(6) for j in range(6)]
+    return xp.asarray(w + [1.0] * (size - N_PARAMS), dtype=dtype)
 
 
 def _unit_scales(ranges: ParamRanges, xp, dtype):
@@ -182,8 +269,11 @@ def _to_unit(vector, ranges: ParamRanges, xp):
     (log-scaled for k_t, k_theta; C[i,j] = b_ij (2 u - 1) off the diagonal)."""
     lo, hi, bound, diagonal = _unit_scales(ranges, xp, vector.dtype)
     u_k = (xp.log(vector[..., :2]) - lo) / (hi - lo)
-    v = vector[..., 2:] / bound
-    return xp.concat([u_k, xp.where(diagonal, v, 0.5 * (v + 1.0))], axis=-1)
+    v = vector[..., 2:N_PARAMS] / bound
+    parts = [u_k, xp.where(diagonal, v, 0.5 * (v + 1.0))]
+    if vector.shape[-1] == N_LEARNED:
+        parts.append(_search_to_unit(vector[..., N_PARAMS:], xp))
+    return xp.concat(parts, axis=-1)
 
 
 def _from_unit(u, ranges: ParamRanges, xp):
@@ -192,13 +282,17 @@ def _from_unit(u, ranges: ParamRanges, xp):
     k_lo = xp.asarray([ranges.k_t[0], ranges.k_theta[0]], dtype=u.dtype)
     k_hi = xp.asarray([ranges.k_t[1], ranges.k_theta[1]], dtype=u.dtype)
     k = xp.clip(xp.exp(lo + (hi - lo) * u[..., :2]), k_lo, k_hi)  # clip: rounding only
-    c = bound * xp.where(diagonal, u[..., 2:], 2.0 * u[..., 2:] - 1.0)
-    return xp.concat([k, c], axis=-1)
+    c = bound * xp.where(diagonal, u[..., 2:N_PARAMS], 2.0 * u[..., 2:N_PARAMS] - 1.0)
+    parts = [k, c]
+    if u.shape[-1] == N_LEARNED:
+        parts.append(_search_from_unit(u[..., N_PARAMS:], xp))
+    return xp.concat(parts, axis=-1)
 
 
 def _centred_frame(centre, ranges: ParamRanges, xp, dtype):
-    """The centre's unit position u0 (38,) and the map's slope s at it (38,)."""
-    return _to_unit(xp.asarray(centre, dtype=dtype), ranges, xp), 0.25 * _unit_weight(xp, dtype)
+    """The centre's unit position u0 (38,) or (47,) and the map's slope s at it (same)."""
+    u0 = _to_unit(xp.asarray(centre, dtype=dtype), ranges, xp)
+    return u0, 0.25 * _unit_weight(xp, dtype, u0.shape[-1])
 
 
 def check_centre(centre, ranges: ParamRanges = DEFAULT_RANGES):
@@ -206,13 +300,13 @@ def check_centre(centre, ranges: ParamRanges = DEFAULT_RANGES):
     ranges (on an edge the map could not leave it on that side)."""
     np = importlib.import_module("numpy")
     centre = np.asarray(centre, dtype=np.float64)
-    if centre.shape != (N_PARAMS,) or not np.all(np.isfinite(centre)):
-        raise UsageError(f"the map's centre must be {N_PARAMS} finite numbers")
+    if centre.shape not in ((N_PARAMS,), (N_LEARNED,)) or not np.all(np.isfinite(centre)):
+        raise UsageError(f"the map's centre must be {N_PARAMS} or {N_LEARNED} finite numbers")
     if np.any(centre[:2] <= 0):
         raise UsageError("the map's centre has a stiffness <= 0")
     u = _to_unit(centre, ranges, np)
     if not np.all((u > 0) & (u < 1)):
-        names = [PARAM_NAMES[i] for i in np.flatnonzero(~((u > 0) & (u < 1)))]
+        names = [LEARNED_NAMES[i] for i in np.flatnonzero(~((u > 0) & (u < 1)))]
         raise UsageError(f"the map's centre is not strictly inside the ranges at {names}")
     return centre
 
@@ -231,6 +325,8 @@ def controller_from_centred_action(action, centre, ranges: ParamRanges = DEFAULT
     xp = namespace_of(action)
     _split_action(action, xp)  # checks the last axis (38)
     u0, s = _centred_frame(centre, ranges, xp, action.dtype)
+    if u0.shape[-1] != action.shape[-1]:
+        raise UsageError(f"a centre of {u0.shape[-1]} numbers for actions of {action.shape[-1]}")
     up, down = 1.0 - u0, u0
     u = u0 + xp.where(action >= 0, up * xp.tanh(s * action / up), down * xp.tanh(s * action / down))
     return controller_from_vector(_from_unit(u, ranges, xp))
@@ -270,29 +366,43 @@ def action_from_controller(params: ControllerParams, ranges: ParamRanges = DEFAU
     diagonal = xp.asarray(_DIAGONAL, dtype=dtype) > 0.5
     u = params.compliance / bound
     a_c = xp.where(diagonal, 2.0 * _inverse_tanh(2.0 * u - 1.0, xp), _inverse_tanh(u, xp))
+    search = None
+    if params.search is not None:
+        u_s = _search_to_unit(vector_from_search(params.search), xp)
+        search = search_from_vector(2.0 * _inverse_tanh(2.0 * u_s - 1.0, xp))
     return vector_from_controller(
         ControllerParams(
             inverse_log_scaled(params.k_t, ranges.k_t),
             inverse_log_scaled(params.k_theta, ranges.k_theta),
             a_c,
+            search,
         )
     )
 
 
 def vector_from_controller(params: ControllerParams):
-    """(..., 38) physical vector [k_t, k_theta, C row-major] (for export and logging)."""
+    """(..., 38) physical vector [k_t, k_theta, C row-major], then (..., 47) with the search's
+    constants where it has them (for export and logging)."""
     xp = namespace_of(params.k_t, params.k_theta, params.compliance)
     c = params.compliance
     shape = tuple(c.shape[:-2])
     k_t = xp.broadcast_to(xp.asarray(params.k_t, dtype=c.dtype), shape)
     k_theta = xp.broadcast_to(xp.asarray(params.k_theta, dtype=c.dtype), shape)
-    return xp.concat([k_t[..., None], k_theta[..., None], xp.reshape(c, shape + (36,))], axis=-1)
+    parts = [k_t[..., None], k_theta[..., None], xp.reshape(c, shape + (36,))]
+    if params.search is not None:
+        search = xp.asarray(vector_from_search(params.search), dtype=c.dtype)
+        parts.append(xp.broadcast_to(search, shape + (N_SEARCH,)))
+    return xp.concat(parts, axis=-1)
 
 
 def controller_from_vector(vector) -> ControllerParams:
-    """ControllerParams from a physical (..., 38) vector (the inverse of vector_from_controller)."""
+    """ControllerParams from a physical (..., 38) or (..., 47) vector (the inverse of
+    vector_from_controller)."""
     xp = namespace_of(vector)
-    return ControllerParams(*_split_action(vector, xp))
+    k_t, k_theta, compliance, search = _split_action(vector, xp)
+    return ControllerParams(
+        k_t, k_theta, compliance, None if search is None else search_from_vector(search)
+    )
 
 
 def stiffness_from_compliance(compliance, max_condition: float = 1e12):
@@ -320,10 +430,15 @@ def stiffness_from_compliance(compliance, max_condition: float = 1e12):
 
 __all__ = [
     "DEFAULT_RANGES",
+    "LEARNED_NAMES",
+    "LEARNED_UNITS",
+    "N_LEARNED",
     "N_PARAMS",
+    "N_SEARCH",
     "OFF_DIAGONAL_FRACTION",
     "PARAM_NAMES",
     "PARAM_UNITS",
+    "SEARCH_RANGES",
     "ControllerParams",
     "ParamRanges",
     "action_from_controller",
@@ -332,6 +447,8 @@ __all__ = [
     "controller_from_centred_action",
     "controller_from_action",
     "controller_from_vector",
+    "search_from_vector",
     "stiffness_from_compliance",
     "vector_from_controller",
+    "vector_from_search",
 ]

@@ -112,6 +112,10 @@ class SkillConfig:
     search_budget: float = math.inf
     withdraw_height: float = 0.02  # m: h_w, the withdrawn goal over the estimated entrance
     withdraw_s: float = 1.0  # s: T_w, the time the withdrawal takes to blend in
+    # How the spiral's pitch, radius and speed follow the part (`for_part`): "absolute", as set
+    # (tuned at the paper's 50 mm); "size", times S / 50 mm, the part's characteristic size over
+    # the one they were set at
+    part_scale: str = "absolute"
 
     def __post_init__(self):
         for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_max_yaw",
@@ -145,6 +149,11 @@ class SkillConfig:
             raise UsageError(
                 f"SkillConfig.spiral_lateral must be in [0, 1], got {self.spiral_lateral!r}"
             )
+        if self.part_scale not in PART_SCALES:
+            raise UsageError(
+                f"SkillConfig.part_scale must be one of {', '.join(PART_SCALES)}, got "
+                f"{self.part_scale!r}"
+            )
         if not (0 <= self.force_on < self.force_full < math.inf):
             raise UsageError(
                 "SkillConfig needs 0 <= force_on < force_full, got "
@@ -165,6 +174,62 @@ class SkillConfig:
 
     def replace(self, **changes) -> SkillConfig:
         return dataclasses.replace(self, **changes)
+
+
+# How the search's lengths follow the part (SkillConfig.part_scale), and the size S they were
+# set at; the spiral's lengths and speed that follow it.
+PART_SCALES = ("absolute", "size")
+REFERENCE_SIZE = 0.05  # m: the paper's training size
+SIZE_SCALED = ("spiral_pitch", "spiral_radius", "spiral_speed")
+TEXT_CONSTANTS = ("part_scale",)  # SkillConfig's constants that are names, not numbers
+
+# The constants a policy may learn per trial (`SearchValues`), in SkillConfig's units.
+LEARNED = ("spiral_pitch", "spiral_radius", "spiral_speed", "spiral_axial", "align_rate",
+           "align_depth", "insert_depth", "insert_axial", "movement_s")  # fmt: skip
+
+
+class SearchValues(NamedTuple):
+    """The skill's learnable constants of each trial, (...,) arrays (SkillConfig's fields of
+    the same names and units; movement_s is the movement's duration T itself, in s)."""
+
+    spiral_pitch: object  # m: p
+    spiral_radius: object  # m: R
+    spiral_speed: object  # m/s: v
+    spiral_axial: object  # kappa: the axial compliance while spiralling, times C_zz
+    align_rate: object  # rad/(N m s): k_a
+    align_depth: object  # m: d_a
+    insert_depth: object  # m: d_i
+    insert_axial: object  # kappa_i: the axial compliance deep in the hole, times C_zz
+    movement_s: object  # s: T
+
+
+def search_values(config: SkillConfig, movement_s: float, like) -> SearchValues:
+    """The config's constants as SearchValues shaped like `like` (...,); movement_s: the
+    movement's duration T where the config names none (`TrialConfig.movement`)."""
+    xp = namespace_of(like)
+    fields = {name: getattr(config, name) for name in LEARNED}
+    fields["movement_s"] = config.movement_s or movement_s
+    return SearchValues(**{k: xp.full(like.shape, v, dtype=like.dtype) for k, v in fields.items()})
+
+
+def for_part(config: SkillConfig, values: SearchValues | None, movement_s: float, size):
+    """The trial's search constants for its part of size S (...,) m: under part_scale "size"
+    the spiral's pitch, radius and speed of `values` (None: the config's) times S / 50 mm, the
+    rest as they are; under "absolute" `values` as given (None stays None: the config's)."""
+    if config.part_scale == "absolute":
+        return values
+    if values is None:
+        values = search_values(config, movement_s, size)
+    factor = size / REFERENCE_SIZE
+    return values._replace(**{name: getattr(values, name) * factor for name in SIZE_SCALED})
+
+
+def _value(config: SkillConfig, values, name: str, column: bool = True):
+    """A learnable constant: the config's float, or the trial's (..., 1) (column) or (...,)."""
+    if values is None:
+        return getattr(config, name)
+    value = getattr(values, name)
+    return value[..., None] if column else value
 
 
 # The two skills a user chooses between (every CLI's --skill): the paper's compliant DMP as
@@ -235,12 +300,19 @@ def constants_from_record(record) -> SkillConfig:
     if not isinstance(record, Mapping):
         raise UsageError(f"skill constants must be an object of SkillConfig fields, got {record!r}")
     names = {f.name for f in dataclasses.fields(SkillConfig)}
+    values = {}
     for name, value in record.items():
         if name not in names:
             raise UsageError(f"skill constants: {name!r} is not a SkillConfig field")
+        if name in TEXT_CONSTANTS:
+            if not isinstance(value, str):
+                raise UsageError(f"skill constants: {name} must be a name, got {value!r}")
+            values[name] = value
+            continue
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise UsageError(f"skill constants: {name} must be a number, got {value!r}")
-    return SkillConfig(**{k: math.inf if v is None else float(v) for k, v in record.items()})
+        values[name] = math.inf if value is None else float(value)
+    return SkillConfig(**values)
 
 
 def named_skill(name: str, constants=None) -> NamedSkill:
@@ -273,12 +345,14 @@ def centre_of_pressure(wrench, min_force: float):
     return xp.stack([wrench[..., 4], -wrench[..., 3]], axis=-1) / n[..., None]
 
 
-def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None, height=None):
+def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None, height=None,
+                    values: SearchValues | None = None):  # fmt: skip
     """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment,
     spiral and insertion elements applied, from the wrench (..., 6) the compliance sees, the
     goal's rotation (..., 3) the alignment found (`aligned_rotation`), the spiral's state (..., 3)
     (`spiral_state`) and the tcp's height (...,) over the goal along the goal's z (m; the
-    insertion press's depth); None: none."""
+    insertion press's depth); None: none. values: the trial's learned constants (None: the
+    config's)."""
     xp = namespace_of(dy, wrench)
     g = resting_gate(config, wrench)[..., None]
     c_lat, k_cop, axial = config.lateral_scale, config.centre_gain, dy[..., 2:3]
@@ -287,11 +361,12 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
         sigma = spiral[..., 2:3]
         c_lat = c_lat + sigma * (config.spiral_lateral - c_lat)
         k_cop = k_cop * (1.0 + sigma * (config.spiral_centre - 1.0))
-        axial = axial * (1.0 + sigma * (config.spiral_axial - 1.0))
+        axial = axial * (1.0 + sigma * (_value(config, values, "spiral_axial") - 1.0))
     if config.insert_axial != 1.0 and height is not None:
-        depth = ENTRANCE_HEIGHT - height  # below the hole's estimated entrance
-        b = xp.clip((depth - config.insert_depth) / config.insert_ramp, 0.0, 1.0)[..., None]
-        axial = axial * (1.0 + b * (config.insert_axial - 1.0))
+        depth = (ENTRANCE_HEIGHT - height)[..., None]  # below the hole's estimated entrance
+        start = _value(config, values, "insert_depth")
+        b = xp.clip((depth - start) / config.insert_ramp, 0.0, 1.0)
+        axial = axial * (1.0 + b * (_value(config, values, "insert_axial") - 1.0))
     lateral = dy[..., :2] * (1.0 - g * (1.0 - c_lat))
     if config.centre_gain > 0:
         lateral = lateral - k_cop * g * centre_of_pressure(wrench, config.force_full)
@@ -301,7 +376,7 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
             w = xp.clip((tau[..., None] - config.search_budget) / config.withdraw_s, 0.0, 1.0)
             axial = axial + w * (-(ENTRANCE_HEIGHT + config.withdraw_height) - axial)
             tau = xp.minimum(tau, config.search_budget)
-        lateral = lateral + spiral_path(config, tau)
+        lateral = lateral + spiral_path(config, tau, values)
     turn = dy[..., 3:]
     if config.align_rate > 0 and rotation is not None:
         turn = turn + rotation
@@ -315,21 +390,23 @@ def _height_over_goal(tcp_pos, goal_pos, goal_rot):
 
 
 def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, goal_rot,
-                     dt: float):  # fmt: skip
+                     dt: float, values: SearchValues | None = None):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
     `align_max_yaw`, where set: docs/design/tilted_hole.md, "The yaw during the spiral"); from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
     force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
-    (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a). Zero rate:
-    the rotation as it is, nothing computed."""
+    (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a); k_a and d_a
+    the trial's `values` (None: the config's). The config's zero rate: the rotation as it is,
+    nothing computed."""
     if config.align_rate == 0.0:
         return rotation
     xp = namespace_of(rotation, wrench)
     height = _height_over_goal(tcp_pos, goal_pos, goal_rot)
     g = resting_gate(config, wrench)[..., None]
-    inside = (height < (ENTRANCE_HEIGHT - config.align_depth))[..., None]
-    step = (dt * config.align_rate) * g * wrench[..., 3:]
+    depth = _value(config, values, "align_depth", column=False)
+    inside = (height < (ENTRANCE_HEIGHT - depth))[..., None]
+    step = (dt * _value(config, values, "align_rate")) * g * wrench[..., 3:]
     tilt = rotation[..., :2] + xp.where(inside, step[..., :2], 0.0)
     norm = xp.linalg.vector_norm(tilt, axis=-1, keepdims=True)
     tilt = tilt * xp.minimum(1.0, config.align_max / xp.maximum(norm, 1e-12))
@@ -378,7 +455,7 @@ def spiral_state(config: SkillConfig, spiral, wrench, tcp_pos, goal_pos, goal_ro
     return xp.stack([tau, h_r, sigma], axis=-1)
 
 
-def spiral_path(config: SkillConfig, tau):
+def spiral_path(config: SkillConfig, tau, values: SearchValues | None = None):
     """(..., 2) the spiral's goal offset s (goal frame x, y; m) after a resting time tau (...,):
     an Archimedean spiral about the hole's estimated axis run round its turns at the speed v,
     out and back in, over and over. With t = tau - t_w (0 before) taken modulo the period
@@ -394,9 +471,11 @@ def spiral_path(config: SkillConfig, tau):
     runs half the pitch from the outward turns: a peg that crossed the hole's capture width
     2 d* between two outward turns (d* = sqrt(R_h^2 - R_p^2), 3.1 mm at 25 mm, and a turned
     triangle's less) is swept again halfway between them, and the search stays over the board
-    near the hole instead of circling R out."""
+    near the hole instead of circling R out. p, v and R: the trial's `values` (None: the
+    config's)."""
     xp = namespace_of(tau)
-    p, v, big_r = config.spiral_pitch, config.spiral_speed, config.spiral_radius
+    p, v, big_r = (_value(config, values, name, column=False)
+                   for name in ("spiral_pitch", "spiral_speed", "spiral_radius"))  # fmt: skip
     t_out = math.pi * big_r**2 / (p * v)  # when r reaches R
     t_across = math.pi * big_r / v  # half a turn at R
     period = 2.0 * t_out + t_across
@@ -422,8 +501,10 @@ def bounded_press(config: SkillConfig, ydd):
 
 
 __all__ = [
+    "LEARNED",
     "SKILLS",
     "SKILL_DESCRIPTIONS",
+    "SearchValues",
     "NamedSkill",
     "SkillConfig",
     "aligned_rotation",
@@ -431,8 +512,10 @@ __all__ = [
     "centre_of_pressure",
     "constants_from_record",
     "constants_record",
+    "for_part",
     "named_skill",
     "resting_gate",
+    "search_values",
     "searched_offset",
     "skill_config",
     "skill_description",

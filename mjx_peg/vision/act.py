@@ -35,7 +35,6 @@ import numpy as np
 from mjx_peg import outdir
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation.stats import mcnemar_p
-from mjx_peg.policy import observation
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import Renderer, make_label
 from mjx_peg.vision.localizer import Localizer
@@ -128,21 +127,26 @@ def localize_trials(
     return out
 
 
-def controller_vectors(policy: str, specs: TrialSpec, shapes: list[str], sizes: np.ndarray):
-    """(B, 38) for trials whose policy observation uses the given shapes and sizes."""
+def controller_vectors(
+    policy: str, specs: TrialSpec, shapes: list[str], sizes: np.ndarray, hole_scales: np.ndarray
+):
+    """(B, 38) for trials whose policy observation (in the policy's layout) uses the given
+    shapes, sizes and hole scales."""
     if policy == "baseline":
         from mjx_peg.skill.baseline import baseline_params
 
         return np.tile(baseline_params(), (len(specs), 1))
     from mjx_peg.policy.export import load_policy
 
-    obs = observation.observe(
+    loaded = load_policy(policy)
+    obs = loaded.observe(
         np.array([SHAPES.index(s) for s in shapes]),
         np.asarray(sizes, dtype=np.float64),
+        np.asarray(hole_scales, dtype=np.float64),
         specs.hole_est_pos,
         specs.hole_est_yaw,
     )
-    return load_policy(policy).vectors_for(obs)
+    return loaded.vectors_for(obs)
 
 
 def run_act(
@@ -192,13 +196,14 @@ def run_act(
         )
         exact, ok_exact = with_estimates(sampled, sampled.board_pos, sampled.board_yaw)
         runs = {}
-        for name, specs, shp, siz in (
-            ("vision", vision, [e.shape for e in est], [e.size for e in est]),
-            ("sampled", sampled, [shape] * trials, sampled.size),
-            ("exact", exact, [shape] * trials, sampled.size),
-        ):
+        for name, specs, shp, siz, fit in (
+            ("vision", vision, [e.shape for e in est], [e.size for e in est],
+             [e.hole_scale for e in est]),
+            ("sampled", sampled, [shape] * trials, sampled.size, sampled.hole_scale),
+            ("exact", exact, [shape] * trials, sampled.size, sampled.hole_scale),
+        ):  # fmt: skip
             t0 = time.perf_counter()
-            params = controller_vectors(policy, specs, shp, np.asarray(siz))
+            params = controller_vectors(policy, specs, shp, np.asarray(siz), np.asarray(fit))
             with tqdm(
                 total=len(specs),
                 desc=f"{shape} trials, {name}",

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from mjx_peg import cli, outdir
@@ -73,8 +74,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--condition", choices=("nominal", "dark", "camera-off"), default="nominal")
     r.add_argument("--width", type=PIXELS, default=1280, help="default 1280")
     r.add_argument("--height", type=PIXELS, default=960, help="default 960")
-    r.add_argument("--shapes", default="circle,square,triangle", help="comma-separated")
-    r.add_argument("--sizes", default="25,50,60", help="sizes S in mm, of 25, 50, 60")
+    r.add_argument(
+        "--shapes",
+        default="circle,square,triangle",
+        help="comma-separated, of circle, square, triangle, hexagon, rectangle (the localizer "
+        "learns the first three)",
+    )
+    r.add_argument(
+        "--sizes",
+        default="25,50,60",
+        help="sizes S in mm, each in 10..80 (the localizer learns 25, 50, 60)",
+    )
     _force(r, "an earlier split (any options)")
 
     t = sub.add_parser("train", help="train the localizer (CPU), export npz + json")
@@ -98,6 +108,11 @@ def build_parser() -> argparse.ArgumentParser:
     lo.add_argument("image", type=path, help="PNG or JPEG from the calibrated camera")
     lo.add_argument("--camera", type=path, required=True, help="calibration JSON (camera.py)")
     lo.add_argument("--model", **_MODEL)
+    lo.add_argument(
+        "--shape",
+        help="the part's shape, when known: its yaw is read at that shape's symmetry; a shape "
+        "the localizer cannot localize is refused (default: the shape it classifies)",
+    )
 
     a = sub.add_parser("act", help="vision to action: trials with the localizer's estimates")
     a.add_argument("--model", **_MODEL)
@@ -137,17 +152,18 @@ def _warn_gl() -> None:
 def _render(args) -> str:
     from mjx_peg.vision.dataset import SplitConfig, prepare_split, render_split
     from mjx_peg.world import mujoco_log
-    from mjx_peg.world.constants import SHAPES, SIZES_MM
+    from mjx_peg.world.constants import SHAPES, SIZE_RANGE
 
-    known = ", ".join(f"{v:g}" for v in SIZES_MM)
+    lo, hi = (1000.0 * s for s in SIZE_RANGE)
     sizes = []
     for s in _csv(args.sizes):
         try:
             size = float(s)
         except ValueError:
-            size = None
-        if size not in SIZES_MM:
-            raise UsageError(f"--sizes must be sizes of mm of {known}, got {s[:20]!r}")
+            size = math.nan
+        if not lo <= size <= hi:
+            raise UsageError(f"--sizes must be sizes S in mm, each in [{lo:g}, {hi:g}], got "
+                             f"{s[:20]!r}")  # fmt: skip
         sizes.append(size)
     shapes = _csv(args.shapes)
     for shape in shapes:
@@ -179,13 +195,14 @@ def _render(args) -> str:
 def _train(args) -> str:
     import dataclasses
 
-    from mjx_peg.vision.dataset import split_items
+    from mjx_peg.vision.dataset import check_trainable, split_config, split_items
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
     outdir.check_apart(args.out, {"--data": args.data, "--val": args.val})
-    split_items(args.data)  # a split with readable labels, before any work
-    if args.val is not None:
-        split_items(args.val)
+    for flag, split in (("--data", args.data), ("--val", args.val)):
+        if split is not None:  # a split of its classes with readable labels, before any work
+            check_trainable(split_config(split), flag)
+            split_items(split)
     cli.check_jax()  # the localizer trains on JAX
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
@@ -229,21 +246,24 @@ def _localize(args) -> str:
     from mjx_peg.vision.dataset import read_png
     from mjx_peg.vision.localizer import Localizer
 
+    loc = Localizer.load(args.model)
+    if args.shape is not None:
+        loc.check_shape(args.shape)
     image = read_png(args.image)
     calib = CameraCalibration.load(args.camera)
-    loc = Localizer.load(args.model)
-    return json.dumps(loc.localize(image, calib).to_json(), indent=2)
+    return json.dumps(loc.localize(image, calib, shape=args.shape).to_json(), indent=2)
 
 
 def _act(args) -> str:
     from mjx_peg.vision.forward import SIZES_MM
+    from mjx_peg.vision.localizer import Localizer
 
     shapes = _csv(args.shapes)
-    for s in shapes:
-        if s not in ("circle", "square", "triangle"):
-            raise UsageError(f"unknown shape {s!r}: choose from circle, square, triangle")
     if not shapes or len(set(shapes)) != len(shapes):
-        raise UsageError("--shapes must name distinct shapes of circle, square, triangle")
+        raise UsageError("--shapes must name distinct shapes")
+    loc = Localizer.load(args.model)
+    for s in shapes:
+        loc.check_shape(s, "--shapes")
     if args.size not in SIZES_MM:
         raise UsageError(
             f"--size must be a size the localizer knows (25, 50, 60 mm), got {args.size:g}"
@@ -253,10 +273,8 @@ def _act(args) -> str:
     args.policy = resolve_policy(args.policy)
     outdir.check_apart(args.out, {"--model": args.model, "--policy": args.policy})
     from mjx_peg.vision.act import RESULT_FILES, run_act
-    from mjx_peg.vision.localizer import Localizer
     from mjx_peg.world import mujoco_log
 
-    loc = Localizer.load(args.model)
     if args.policy != "baseline":
         from mjx_peg.policy.export import load_policy
 

@@ -11,7 +11,8 @@ Label (JSON, SI units, world = robot base frame):
 
     board:       shape, size (m), x, y (hole centre on the table, m), yaw (rad, as drawn)
     yaw_mod:     yaw modulo the shape's symmetry, in [0, 2 pi / n) (circle: null)
-    size_class, shape_class: indices into SIZES_MM and SHAPES
+    size_class, shape_class: indices into the localizer's classes SIZES_MM and SHAPE_CLASSES
+                 (null for a size or shape that is none of them)
     hole_px:     (u, v) of the hole centre at the board top (z = HOLE_DEPTH), true camera
     hole_px_table: (u, v) of the hole centre on the table (z = 0), true camera
     calibration: the camera calibration a user would have (camera.py's JSON)
@@ -33,9 +34,9 @@ from mjx_peg import inputs, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import OutDir, write_json
 from mjx_peg.vision.camera import CameraCalibration
+from mjx_peg.vision.forward import SHAPE_CLASSES
 from mjx_peg.vision.randomize import (
     CONDITIONS,
-    SHAPES,
     SIZES_MM,
     apply_view,
     load_vision_model,
@@ -109,6 +110,10 @@ class Renderer:
         self.close()
 
 
+def _index(classes: tuple, value) -> int | None:
+    return classes.index(value) if value in classes else None
+
+
 def make_label(board: dict, view: dict) -> dict:
     """The JSON label of one image (see the module docstring)."""
     true = CameraCalibration.from_json(view["camera_true"])
@@ -119,8 +124,8 @@ def make_label(board: dict, view: dict) -> dict:
     return {
         "board": {k: board[k] for k in ("shape", "size", "x", "y", "yaw")},
         "yaw_mod": yaw_mod(board["shape"], board["yaw"]),
-        "shape_class": SHAPES.index(board["shape"]),
-        "size_class": SIZES_MM.index(size_mm),
+        "shape_class": _index(SHAPE_CLASSES, board["shape"]),
+        "size_class": _index(SIZES_MM, size_mm),
         "hole_px": [float(v) for v in top],
         "hole_px_table": [float(v) for v in table],
         "calibration": view["calibration"],
@@ -168,17 +173,19 @@ class SplitConfig:
     condition: str = "nominal"
     width: int = 1280
     height: int = 960
-    shapes: tuple[str, ...] = SHAPES
+    shapes: tuple[str, ...] = SHAPE_CLASSES
     sizes_mm: tuple[float, ...] = SIZES_MM
 
     def __post_init__(self):
         object.__setattr__(self, "shapes", tuple(self.shapes))
         object.__setattr__(self, "sizes_mm", tuple(float(s) for s in self.sizes_mm))
-        if not self.shapes or not set(self.shapes) <= set(SHAPES):
-            raise UsageError(f"shapes must be some of {', '.join(SHAPES)}, got {self.shapes}")
-        if not self.sizes_mm or not set(self.sizes_mm) <= set(SIZES_MM):
-            sizes = ", ".join(f"{s:g}" for s in SIZES_MM)
-            raise UsageError(f"sizes must be some of {sizes} mm, got {self.sizes_mm}")
+        if not self.shapes or not set(self.shapes) <= set(constants.SHAPES):
+            raise UsageError(
+                f"shapes must be some of {', '.join(constants.SHAPES)}, got {self.shapes}"
+            )
+        lo, hi = (1000.0 * s for s in constants.SIZE_RANGE)
+        if not self.sizes_mm or not all(lo <= s <= hi for s in self.sizes_mm):
+            raise UsageError(f"sizes must lie in [{lo:g}, {hi:g}] mm, got {self.sizes_mm}")
         if self.condition not in CONDITIONS:
             raise UsageError(
                 f"unknown condition {self.condition!r}: choose from {', '.join(CONDITIONS)}"
@@ -198,7 +205,7 @@ def _recorded(doc: dict) -> dict:
     if doc.get("schema") != SCHEMA or not isinstance(doc["config"], dict):
         raise ValueError(f"no {SCHEMA} manifest")
     # splits made before these options existed
-    return {"shapes": list(SHAPES), "sizes_mm": list(SIZES_MM), **doc["config"]}
+    return {"shapes": list(SHAPE_CLASSES), "sizes_mm": list(SIZES_MM), **doc["config"]}
 
 
 def prepare_split(out, config: SplitConfig, force: bool = False, note=None) -> Path:
@@ -249,6 +256,17 @@ def split_config(split_dir) -> SplitConfig:
         raise UsageError(f"{path} is not a vision split manifest") from None
 
 
+def check_trainable(config: SplitConfig, flag: str) -> None:
+    """UsageError unless a split renders only the localizer's classes (it learns to name them)."""
+    shapes = [s for s in config.shapes if s not in SHAPE_CLASSES]
+    sizes = [f"{s:g} mm" for s in config.sizes_mm if s not in SIZES_MM]
+    if shapes or sizes:
+        raise UsageError(
+            f"{flag} renders {', '.join(shapes + sizes)}: the localizer learns the shapes "
+            f"{', '.join(SHAPE_CLASSES)} at {', '.join(f'{s:g}' for s in SIZES_MM)} mm only"
+        )
+
+
 def _number(value) -> bool:
     return type(value) in (int, float) and math.isfinite(value)
 
@@ -261,13 +279,14 @@ def label_problem(label) -> str | None:
     board = label.get("board")
     if not isinstance(board, dict):
         return "board is not an object"
-    if board.get("shape") not in SHAPES:
-        return f"board.shape is not one of {', '.join(SHAPES)}"
+    if board.get("shape") not in constants.SHAPES:
+        return f"board.shape is not one of {', '.join(constants.SHAPES)}"
     if not all(_number(board.get(k)) for k in ("size", "x", "y", "yaw")) or board["size"] <= 0:
         return "board.size, x, y and yaw are not numbers (size > 0)"
-    for key, names in (("shape_class", SHAPES), ("size_class", SIZES_MM)):
-        if type(label.get(key)) is not int or not 0 <= label[key] < len(names):
-            return f"{key} is not an index below {len(names)}"
+    for key, names in (("shape_class", SHAPE_CLASSES), ("size_class", SIZES_MM)):
+        index = label.get(key)  # null: a part outside the localizer's classes
+        if index is not None and (type(index) is not int or not 0 <= index < len(names)):
+            return f"{key} is not null or an index below {len(names)}"
     if label.get("yaw_mod") is not None and not _number(label["yaw_mod"]):
         return "yaw_mod is not a number"
     px = label.get("hole_px")

@@ -13,7 +13,7 @@ import numpy as np
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
 from mjx_peg.vision.localizer import Localizer
-from mjx_peg.world import constants, mjcf
+from mjx_peg.world import constants, parts
 
 FIGURES = ("predictions.png", "gallery.png")
 
@@ -45,14 +45,20 @@ def _save(fig, path: Path, dpi: int) -> Path:
         plt.close(fig)
 
 
-def hole_outline(shape: str, size: float, x: float, y: float, yaw: float) -> np.ndarray:
+def hole_outline(
+    shape: str, size: float, x: float, y: float, yaw: float, hole_scale: float | None = None
+) -> np.ndarray:
     """(n + 1, 3) closed outline of the hole's rim at the board top, world frame."""
-    n = constants.HOLE_SIDES[shape]
-    r = mjcf.hole_inradius(shape, size) / math.cos(math.pi / n)  # circumradius
-    a = mjcf.hole_normal_angles(shape) + math.pi / n + yaw
-    a = np.append(a, a[0])
+    corners = parts.hole_corners(shape, size, hole_scale)
+    corners = np.concatenate([corners, corners[:1]])
+    c, s = math.cos(yaw), math.sin(yaw)
     return np.stack(
-        [x + r * np.cos(a), y + r * np.sin(a), np.full(a.shape, constants.HOLE_DEPTH)], axis=-1
+        [
+            x + c * corners[:, 0] - s * corners[:, 1],
+            y + s * corners[:, 0] + c * corners[:, 1],
+            np.full(len(corners), constants.HOLE_DEPTH),
+        ],
+        axis=-1,
     )
 
 

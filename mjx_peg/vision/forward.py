@@ -25,8 +25,10 @@ import numpy as np
 from mjx_peg.world import constants
 
 OFFSET_SCALE = 0.01  # m: the regressor's dx, dy unit
-# The size head's classes are world.constants.SIZES_MM, the shape head's SHAPES, in order.
+# The size head's classes are world.constants.SIZES_MM, the shape head's the paper's three
+# shapes (PAPER_SHAPES), in order.
 SIZES_MM = constants.SIZES_MM
+SHAPE_CLASSES = constants.PAPER_SHAPES
 FINE_OUTPUTS = 12
 DETECTOR_HEAD = 3
 

@@ -30,7 +30,7 @@ from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.robot.runtime import HoleEstimate
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
-from mjx_peg.vision.forward import SIZES_MM
+from mjx_peg.vision.forward import SHAPE_CLASSES, SIZES_MM
 from mjx_peg.vision.views import ViewConfig, coarse_view, fine_view, standardize
 from mjx_peg.world.constants import SHAPES, SYMMETRY
 
@@ -76,8 +76,9 @@ def _finite(value) -> bool:
 
 
 def yaw_from_encoding(shape_id: int, cos_sin4, cos_sin3) -> float:
-    """Yaw (rad) of a shape from its symmetry encoding, as the representative nearest 45 deg."""
-    n = SYMMETRY[shape_id]
+    """Yaw (rad) of a shape (a shape class, SHAPE_CLASSES) from its symmetry encoding, as the
+    representative nearest 45 deg."""
+    n = SYMMETRY[SHAPES.index(SHAPE_CLASSES[shape_id])]
     if n == 0:
         return YAW_CENTRE
     c, s = cos_sin4 if n == 4 else cos_sin3
@@ -105,6 +106,7 @@ class Localization:
             "yaw_deg": math.degrees(e.yaw),
             "shape": e.shape,
             "size": e.size,
+            "hole_scale": e.hole_scale,
             "frame": "robot base",
             "coarse_xy": list(self.coarse_xy),
             "detector_score": self.detector_score,
@@ -157,6 +159,23 @@ class Localizer:
         write_json(model_dir / MODEL_JSON, self.config)
         return model_dir
 
+    @property
+    def shapes(self) -> tuple[str, ...]:
+        """The shapes it localizes: its shape classes (model.json "classes"), the only ones it
+        can name and whose yaw it encodes."""
+        return tuple(self.config.get("classes", {}).get("shapes", SHAPE_CLASSES))
+
+    def check_shape(self, shape: str, flag: str = "--shape") -> str:
+        """`shape` if the localizer localizes it, else UsageError (one line) saying it cannot."""
+        if shape not in SHAPES:
+            raise UsageError(f"{flag}: unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+        if shape not in self.shapes:
+            raise UsageError(
+                f"{flag} {shape}: this localizer cannot localize {shape} holes (it names and "
+                f"finds the yaw of {', '.join(self.shapes)} only); measure the hole yourself"
+            )
+        return shape
+
     # --- the two stages -----------------------------------------------------------------------
 
     def workspace_mask(self) -> np.ndarray:
@@ -207,9 +226,17 @@ class Localizer:
         return forward.regressor_forward(self.arch["regressor"], self.params, view)[0]
 
     def localize(
-        self, image: np.ndarray, calib: CameraCalibration, refine: int | None = None
+        self,
+        image: np.ndarray,
+        calib: CameraCalibration,
+        refine: int | None = None,
+        shape: str | None = None,
     ) -> Localization:
-        """The hole in `image` (H, W, 3) uint8 taken by the camera `calib`."""
+        """The hole in `image` (H, W, 3) uint8 taken by the camera `calib`; `shape`: the part's,
+        when known (its yaw is then read at that shape's symmetry; UsageError if the localizer
+        cannot localize it), else the shape it classifies."""
+        if shape is not None:
+            self.check_shape(shape)
         image = np.asarray(image)
         if image.ndim != 3 or image.shape[2] != 3:
             raise UsageError(f"the image must be H x W x 3 (RGB), got shape {image.shape}")
@@ -221,13 +248,13 @@ class Localizer:
             centre = centre + forward.OFFSET_SCALE * out[:2]
         shape_probs = forward.softmax(out[6:9])
         size_probs = forward.softmax(out[9:12])
-        shape_id = int(np.argmax(shape_probs))
+        shape_id = int(np.argmax(shape_probs)) if shape is None else SHAPE_CLASSES.index(shape)
         yaw = yaw_from_encoding(shape_id, out[2:4], out[4:6])
         estimate = HoleEstimate(
             float(centre[0]),
             float(centre[1]),
             yaw,
-            SHAPES[shape_id],
+            SHAPE_CLASSES[shape_id],
             SIZES_MM[int(np.argmax(size_probs))] / 1000.0,
         )
         return Localization(

@@ -7,7 +7,9 @@ view (a plain dict, stored in the image's JSON label) and `apply_view` writes it
 The training range (condition `nominal`):
 
 - board: hole centre uniform in area over the task's workspace sector, yaw uniform in
-  [0, 360) deg, shape circle / square / triangle, size 25 / 50 / 60 mm;
+  [0, 360) deg, shape circle / square / triangle, size 25 / 50 / 60 mm (the localizer's classes;
+  a split may render any of constants.SHAPES at any size in constants.SIZE_RANGE, at the shape's
+  paper fit);
 - table: 4 textures (checker, speckle, gradient, plain) x colour (HSV) x scale (texrepeat
   2-14), glossy (reflectance up to 0.05) 30 % of the time;
 - board look: 3 textures (plain, speckle, gradient) x colour (HSV) x specular / shininess;
@@ -47,9 +49,8 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjx_peg.vision.camera import CameraCalibration  # noqa: E402
-from mjx_peg.vision.forward import SIZES_MM  # noqa: E402
+from mjx_peg.vision.forward import SHAPE_CLASSES, SIZES_MM  # noqa: E402
 from mjx_peg.world import constants, mjcf, scene  # noqa: E402
-from mjx_peg.world.constants import SHAPES  # noqa: E402
 from mjx_peg.world.task import TaskConfig  # noqa: E402
 
 CONDITIONS = ("nominal", "dark", "camera-off")
@@ -183,7 +184,7 @@ def nominal_camera(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, float
 
 def sample_board(
     rng: np.random.Generator,
-    shapes: tuple[str, ...] = SHAPES,
+    shapes: tuple[str, ...] = SHAPE_CLASSES,
     sizes_mm: tuple[float, ...] = SIZES_MM,
     task: TaskConfig | None = None,
 ) -> dict:

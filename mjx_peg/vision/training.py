@@ -33,9 +33,10 @@ from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.vision import forward
 from mjx_peg.vision.camera import CameraCalibration
 from mjx_peg.vision.dataset import read_png, split_items
+from mjx_peg.vision.forward import SHAPE_CLASSES
 from mjx_peg.vision.localizer import SCHEMA, SCHEMA_VERSION, Localizer, default_workspace
 from mjx_peg.vision.views import ViewConfig, coarse_view, fine_view
-from mjx_peg.world.constants import SHAPES, SIZES_MM
+from mjx_peg.world.constants import SIZES_MM
 
 CONFIG_FILE, METRICS_FILE, CHECKPOINTS, CACHE = (
     "train_config.json",
@@ -414,7 +415,7 @@ def train(
         "views": views.to_json(),
         "refine": config.refine,
         "workspace": default_workspace(),
-        "classes": {"shapes": list(SHAPES), "sizes_mm": [int(s) for s in SIZES_MM]},
+        "classes": {"shapes": list(SHAPE_CLASSES), "sizes_mm": [int(s) for s in SIZES_MM]},
         "offset_scale_m": forward.OFFSET_SCALE,
         "train_config": config.to_json(),
         "train_data": str(Path(data_dir)),

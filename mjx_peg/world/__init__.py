@@ -3,7 +3,8 @@
 constants.py    every fixed number and name of the physical setup
 rotations.py    rotation matrices, quaternions, rotation vectors
 kinematics.py   the UR5e's closed-form forward and inverse kinematics
-mjcf.py         the scene's MJCF for one (shape, size)
+parts.py        the family of parts: what S measures, the hole's clearance and walls, the peg
+mjcf.py         the scene's MJCF for one part (shape, size, hole scale)
 scene.py        the compiled scene and the fields each trial overwrites
 pose_solver.py  a site put at a pose by damped least squares (rendering, tests)
 task.py         TaskConfig -> TrialSpec: boards, errors, frictions, start configurations

@@ -1,6 +1,8 @@
-"""The scene's MJCF for one (shape, size): UR5e on a table, a board with a through hole, a peg.
+"""The scene's MJCF for one part (shape, size, hole clearance): UR5e, table, board with a hole, peg.
 
-Frames, names and units follow CONVENTIONS.md (SI units inside; the CLI takes mm).
+Frames, names and units follow CONVENTIONS.md (SI units inside; the CLI takes mm). The part's
+geometry (what S measures for each shape, the hole's clearance and walls, the peg's section, the
+hole's depth, the paper's 80 mm for every part) is `parts.py`'s.
 
 Scene contents
 --------------
@@ -12,22 +14,29 @@ Scene contents
   through it along z. The engines place it per trial by overwriting ``model.body_pos[board]``
   and ``model.body_quat[board]`` (``scene.set_board_pose``; the MJX engine writes the same two
   fields into its batched model). The hole is made only of boxes, one per edge of the
-  hole polygon: the box's inner face lies on the edge line and the box is long enough to reach the
-  neighbouring boxes at the board's outer outline (a polygon with the same edge directions whose
-  inradius is ``board_half_width(shape, size)`` >= 0.1 m), so the walls have no gaps; the board
-  top is solid at least out to 0.1 m from the hole axis (the triangle's board looks like a
-  three-bladed star: the box ends stick out past the outline's corners).
+  hole polygon (`hole_walls`: each wall's outward normal angle, evenly spaced from -90 deg, and
+  the distance of its inner face from the axis): the box's inner face lies on the edge line and
+  the box is long enough to reach the neighbouring boxes at the board's outer outline (a regular
+  polygon with the same normals whose inradius is ``board_half_width`` >= 0.1 m, at least
+  0.05 m beyond the farthest wall), so the walls have no gaps; the board top is solid at least
+  out to 0.1 m from the hole axis (the triangle's board looks like a three-bladed star: the box
+  ends stick out past the outline's corners).
   Hole reference orientation: at board yaw 0 one hole edge is parallel to world x, on the -y side
   of the axis (square: edges along x and y; triangle: an edge along x at y = -r_in with the
-  opposite corner on +y; circle: a regular HOLE_SIDES-gon with one edge along x at y = -r_in).
+  opposite corner on +y; hexagon: edges along x at y = +-r_in, corners on the x axis; rectangle:
+  its long edges along x at y = +-hole_scale S/4; circle: a regular HOLE_SIDES-gon with one edge
+  along x at y = -r_in).
 - Peg: body ``peg``, child of the wrist-3 body; its frame has its origin at the grasp point and z
   along the peg away from the flange; it spans 0 <= z <= PEG_LENGTH. The nominal grasp is the
   identity relative to ``flange``; grasp errors overwrite ``body_pos[peg]`` = (0, 0, dz) and
-  ``body_quat[peg]`` (``scene.set_grasp``). Square peg: a box of edge L. Circle peg: a convex
-  mesh prism with CIRCLE_SIDES sides and circumradius D/2 (MJX has no cylinder-box collision).
-  Triangle peg: a convex mesh prism, equilateral with edge L, corners at -90, 30 and 150 deg
-  about the peg z axis: with the tool pointing down at the hole's yaw, R = Rz(yaw) Rx(pi), this
-  is the hole's triangle (Rx(pi) mirrors y).
+  ``body_quat[peg]`` (``scene.set_grasp``). Square peg: a box of edge L; rectangle peg: a box
+  S by S/2, its long edge along the peg x axis. Circle peg: a convex mesh prism with CIRCLE_SIDES
+  sides and circumradius D/2 (MJX has no cylinder-box collision). Triangle peg: a convex mesh
+  prism, equilateral with edge L, corners at -90, 30 and 150 deg about the peg z axis: with the
+  tool pointing down at the hole's yaw, R = Rz(yaw) Rx(pi), this is the hole's triangle (Rx(pi)
+  mirrors y). Hexagon peg: a convex mesh prism, corners at 0, 60, ..., 300 deg, S across flats.
+  Whatever the section, the peg weighs PEG_MASS and has the inertia of a solid cylinder of
+  diameter S (it is held rigidly; the paper gives neither).
 - Sites: ``flange`` (wrist-3 origin), ``tcp`` (wrist-3, (0, 0, PEG_LENGTH)), ``ft`` (peg origin),
   ``peg_tip`` (peg, (0, 0, PEG_LENGTH)). Sensors ``ft_force`` and ``ft_torque`` on site ``ft``:
   MuJoCo's force/torque sensors, expressed in the ``ft`` frame; they report the wrench that the
@@ -57,17 +66,8 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from mjx_peg.errors import UsageError
-from mjx_peg.world.constants import (
-    CIRCLE_SIDES,
-    HOLE_DEPTH,
-    HOLE_SCALE,
-    HOLE_SIDES,
-    PEG_LENGTH,
-    PEG_MASS,
-    SHAPES,
-    TIMESTEP,
-)
+from mjx_peg.world.constants import HOLE_DEPTH, HOLE_SCALE, PEG_LENGTH, PEG_MASS, TIMESTEP
+from mjx_peg.world.parts import check_hole_scale, check_part, hole_walls, peg_section
 
 BOARD_MIN_HALF_WIDTH = 0.1  # m: inradius of the board's outer outline (at least)
 BOARD_MIN_WALL = 0.05  # m: wall thickness around the hole (at least)
@@ -86,50 +86,10 @@ def _vec(*xs: float) -> str:
     return " ".join(_fmt(x) for x in xs)
 
 
-def check_part(shape: str, size: float) -> tuple[str, float]:
-    """Validated (shape, size in m) or UsageError with one line naming the valid values."""
-    if shape not in SHAPES:
-        raise UsageError(f"unknown shape {shape!r}: valid shapes are {', '.join(SHAPES)}")
-    try:
-        size = float(size)
-    except (TypeError, ValueError):
-        raise UsageError(f"size must be a finite number of metres > 0, got {size!r}") from None
-    if not (math.isfinite(size) and size > 0.0):
-        raise UsageError(f"size must be a finite number of metres > 0, got {size!r}")
-    return shape, size
-
-
-def hole_inradius(shape: str, size: float) -> float:
-    """Hole polygon inradius (m): circle 1.03 D/2, square 1.08 L/2, triangle 1.08 L/(2 sqrt 3)."""
-    shape, size = check_part(shape, size)
-    width = HOLE_SCALE[shape] * size  # circle: inscribed diameter, square/triangle: edge
-    return width / (2.0 * math.sqrt(3.0)) if shape == "triangle" else width / 2.0
-
-
-def hole_normal_angles(shape: str) -> np.ndarray:
-    """Angles (rad, board frame) of the hole edges' outward normals; the first is -90 deg."""
-    n = HOLE_SIDES[shape]
-    return -0.5 * math.pi + 2.0 * math.pi * np.arange(n) / n
-
-
-def board_half_width(shape: str, size: float) -> float:
-    """Inradius (m) of the board's outer outline: max(0.1 m, hole inradius + 0.05 m)."""
-    return max(BOARD_MIN_HALF_WIDTH, hole_inradius(shape, size) + BOARD_MIN_WALL)
-
-
-def peg_section(shape: str, size: float) -> np.ndarray:
-    """(n, 2) corners of the peg cross-section in the peg frame (x, y), counter-clockwise."""
-    shape, size = check_part(shape, size)
-    if shape == "circle":
-        angles = 2.0 * math.pi * np.arange(CIRCLE_SIDES) / CIRCLE_SIDES
-        radius = size / 2.0
-    elif shape == "square":
-        angles = math.pi / 4 + 0.5 * math.pi * np.arange(4)
-        radius = size / math.sqrt(2.0)
-    else:
-        angles = -0.5 * math.pi + 2.0 * math.pi * np.arange(3) / 3
-        radius = size / math.sqrt(3.0)
-    return radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+def board_half_width(shape: str, size: float, hole_scale: float | None = None) -> float:
+    """Inradius (m) of the board's outer outline: max(0.1 m, the farthest wall + 0.05 m)."""
+    farthest = max(d for _, d in hole_walls(shape, size, hole_scale))
+    return max(BOARD_MIN_HALF_WIDTH, farthest + BOARD_MIN_WALL)
 
 
 def _look_at_xyaxes(eye, target) -> str:
@@ -148,14 +108,13 @@ def element(parent: ET.Element, tag: str, **attrs) -> ET.Element:
     return ET.SubElement(parent, tag, {k: str(v) for k, v in attrs.items()})
 
 
-def _add_board(worldbody: ET.Element, shape: str, size: float) -> None:
-    r = hole_inradius(shape, size)
-    w = board_half_width(shape, size)
-    n = HOLE_SIDES[shape]
-    half_len = w * math.tan(math.pi / n)  # reaches the outer outline's corners
-    half_thick = 0.5 * (w - r)
+def _add_board(worldbody: ET.Element, shape: str, size: float, hole_scale: float) -> None:
+    walls = hole_walls(shape, size, hole_scale)
+    w = board_half_width(shape, size, hole_scale)
+    half_len = w * math.tan(math.pi / len(walls))  # reaches the outer outline's corners
     board = element(worldbody, "body", name="board", pos="0.45 0.1 0")
-    for k, phi in enumerate(hole_normal_angles(shape)):
+    for k, (phi, r) in enumerate(walls):
+        half_thick = 0.5 * (w - r)
         c = r + half_thick
         yaw = phi - 0.5 * math.pi  # box x along the edge, box y along the outward normal
         element(
@@ -205,8 +164,9 @@ def _add_peg(wrist3: ET.Element, asset: ET.Element, shape: str, size: float) -> 
         material="peg",
         friction=_vec(DEFAULT_FRICTION, 0.005, 0.0001),
     )
-    if shape == "square":
-        box = _vec(size / 2, size / 2, PEG_LENGTH / 2)
+    if shape in ("square", "rectangle"):
+        half_width = size / 2 if shape == "square" else size / 4
+        box = _vec(size / 2, half_width, PEG_LENGTH / 2)
         element(
             peg, "geom", name="peg", type="box", size=box, pos=_vec(0, 0, PEG_LENGTH / 2), **common
         )
@@ -232,15 +192,19 @@ def _arm_xml() -> str:
     return UR5E_XML.read_text()
 
 
-def build_mjcf(shape: str, size: float) -> str:
-    """The full scene's MJCF (a standalone XML string) for `shape` in SHAPES and `size` in m.
+def build_mjcf(shape: str, size: float, hole_scale: float | None = None) -> str:
+    """The full scene's MJCF (a standalone XML string) for `shape` in SHAPES, `size` in m and
+    the hole's clearance `hole_scale` (hole size / peg size; None: the shape's paper fit).
 
-    size is the characteristic size S: circle diameter D, square edge L, triangle edge L.
-    Raises ValueError for an unknown shape or a size that is not a finite number > 0.
+    size is the characteristic size S (`parts.py` says what it measures for each shape).
+    Raises UsageError for an unknown shape, a size that is not a finite number > 0 or a hole
+    scale outside HOLE_SCALE_RANGE.
     """
     shape, size = check_part(shape, size)
+    scale = check_hole_scale(shape, hole_scale)
     root = ET.fromstring(_arm_xml())
-    root.set("model", f"mjx_peg_{shape}_{size * 1000:g}mm")
+    fit = "" if scale == HOLE_SCALE[shape] else f"_hole{scale:g}"
+    root.set("model", f"mjx_peg_{shape}_{size * 1000:g}mm{fit}")
 
     compiler = root.find("compiler")
     root.remove(compiler)
@@ -299,7 +263,7 @@ def build_mjcf(shape: str, size: float) -> str:
         xyaxes=_look_at_xyaxes(eye, (0.3, 0.05, 0.18)),
         fovy=45,
     )
-    _add_board(worldbody, shape, size)
+    _add_board(worldbody, shape, size, scale)
     wrist3 = worldbody.find(f".//body[@name='{WRIST3_BODY}']")
     _add_peg(wrist3, asset, shape, size)
 

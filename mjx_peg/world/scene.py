@@ -1,8 +1,8 @@
-"""The compiled scene of one (shape, size) and the fields each trial overwrites in it.
+"""The compiled scene of one part (shape, size, hole scale) and the fields each trial overwrites.
 
 The MJCF is `mjcf.build_mjcf`'s (frames, names and units: CONVENTIONS.md). A trial changes only
-model fields, never the model's structure, so one compiled model per (shape, size) serves every
-trial (`load_model`, cached, an independent copy per call):
+model fields, never the model's structure, so one compiled model per part (shape, size S, hole
+scale) serves every trial of that part (`load_model`, cached, an independent copy per call):
 
     board:     body_pos[board], body_quat[board]   yaw about z, then the tilt about the hole's
                                                    entrance (`task.board_pose`)
@@ -28,23 +28,25 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjx_peg.world.constants import ACTUATOR_NAMES, JOINT_NAMES  # noqa: E402
-from mjx_peg.world.mjcf import WRIST3_BODY, build_mjcf, check_part  # noqa: E402
+from mjx_peg.world.mjcf import WRIST3_BODY, build_mjcf  # noqa: E402
+from mjx_peg.world.parts import check_hole_scale, check_part  # noqa: E402
 from mjx_peg.world.task import board_pose  # noqa: E402
 
 
-@functools.lru_cache(maxsize=64)  # a few dozen (shape, size) pairs at most
-def _compiled(shape: str, size: float) -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_string(build_mjcf(shape, size))
+@functools.lru_cache(maxsize=64)  # a few dozen parts at most
+def _compiled(shape: str, size: float, hole_scale: float) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(build_mjcf(shape, size, hole_scale))
 
 
-def load_model(shape: str, size: float) -> mujoco.MjModel:
-    """The compiled scene for (shape, size in m).
+def load_model(shape: str, size: float, hole_scale: float | None = None) -> mujoco.MjModel:
+    """The compiled scene for (shape, size in m, hole scale: hole size / peg size, None for the
+    shape's paper fit).
 
-    Compilation is cached per (shape, size) (functools.lru_cache); every call returns an
-    independent copy, so callers may overwrite board pose, grasp and friction freely.
+    Compilation is cached per part (functools.lru_cache); every call returns an independent copy,
+    so callers may overwrite board pose, grasp and friction freely.
     """
     shape, size = check_part(shape, size)
-    return copy.deepcopy(_compiled(shape, size))
+    return copy.deepcopy(_compiled(shape, size, check_hole_scale(shape, hole_scale)))
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:

@@ -1,4 +1,4 @@
-"""`mjx-peg-scene`: write the scene MJCF for one (shape, size) and a rendered PNG of it."""
+"""`mjx-peg-scene`: write the scene MJCF for one part (shape, size, hole scale) and a PNG of it."""
 
 from __future__ import annotations
 
@@ -8,20 +8,23 @@ import sys
 from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
-from mjx_peg.world.constants import SHAPES
+from mjx_peg.world.constants import HOLE_SCALE, SHAPES
 
 PROG = "mjx-peg-scene"
 
 
 def _parse(argv) -> argparse.Namespace:
+    from mjx_peg.world.task import HOLE_SCALE_HELP, hole_scale_of, parse_hole_scale
+
     parser = cli.Parser(
         prog=PROG,
-        description="Write the scene MJCF for one (shape, size) and a rendered PNG of it.",
+        description="Write the scene MJCF for one part (shape, size, hole scale) and a PNG of it.",
     )
     parser.add_argument("--shape", required=True, choices=SHAPES)
     parser.add_argument(
         "--size", required=True, type=cli.SIZE_MM, help="characteristic size S (D or L)"
     )
+    parser.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     parser.add_argument(
         "--out", required=True, type=cli.nonempty_path, help="output directory (created if needed)"
     )
@@ -40,6 +43,7 @@ def _parse(argv) -> argparse.Namespace:
     )
     args = parser.parse_args(argv)
     args.size_mm = args.size
+    args.hole_scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
     return args
 
 
@@ -55,14 +59,16 @@ def main(argv=None) -> int:
 
     mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
     size = args.size_mm / 1000.0
-    stem = f"scene_{args.shape}_{args.size_mm:g}mm"
+    scale = args.hole_scale
+    fit = "" if scale == HOLE_SCALE[args.shape] else f"_hole{scale:g}"
+    stem = f"scene_{args.shape}_{args.size_mm:g}mm{fit}"
     xml_path, png_path = args.out / f"{stem}.xml", args.out / f"{stem}.png"
     # Everything is checked and made before --out is touched; nothing replaced without --force.
     with outdir.exclusive(args.out):
         if args.out.is_dir() and not args.force:
             outdir.refuse_or_move([xml_path, png_path], False)
-        xml = build_mjcf(args.shape, size)
-        model = load_model(args.shape, size)
+        xml = build_mjcf(args.shape, size, scale)
+        model = load_model(args.shape, size, scale)
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
             names = ", ".join(model.camera(i).name for i in range(model.ncam))
             raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")

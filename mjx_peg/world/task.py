@@ -1,13 +1,16 @@
 """The insertion task (paper section 5.2): `TaskConfig` randomization -> `TrialSpec` arrays.
 
-Per trial (CONVENTIONS.md "Trial quantities"): a shape and size, the board (true hole centre
-uniform in area over an annular sector of the workspace, yaw uniform), the peg-board friction, a
-localization error (dx, dy, dyaw) and a grasp error (dz, tilt_x, tilt_y), each uniform within
-+- its range and applied as `TaskConfig.grasp_model` says (the board's height and tilt about its
-hole's entrance centre, the paper's; or the peg's pose in the flange), and a start: the nominal
-tip (`tcp`) above the estimated hole, with a random horizontal offset, height and small tilt, and
-the arm configuration reaching it (analytic IK, the branch nearest `kinematics.HOME_Q`). Trials
-whose start or goal configuration is out of reach or near-singular are drawn again (rejection
+Per trial (CONVENTIONS.md "Trial quantities"): a part (its shape, size S and the hole's
+clearance `hole_scale`, the hole's size over the peg's: fixed per shape, or drawn from a range
+over evenly spaced values at most `constants.HOLE_SCALE_STEP` apart, so that trials share
+compiled scenes), the board (true hole centre uniform in area over an annular sector of the
+workspace, yaw uniform), the peg-board friction, a localization error (dx, dy, dyaw) and a grasp
+error (dz, tilt_x, tilt_y), each uniform within +- its range and applied as
+`TaskConfig.grasp_model` says (the board's height and tilt about its hole's entrance centre, the
+paper's; or the peg's pose in the flange), and a start: the nominal tip (`tcp`) above the
+estimated hole, with a random horizontal offset, height and small tilt, and the arm
+configuration reaching it (analytic IK, the branch nearest `kinematics.HOME_Q`). Trials whose
+start or goal configuration is out of reach or near-singular are drawn again (rejection
 sampling).
 """
 
@@ -22,7 +25,17 @@ import numpy as np
 from mjx_peg import file_versions
 from mjx_peg.errors import UsageError
 from mjx_peg.world import kinematics
-from mjx_peg.world.constants import GOAL_HEIGHT, GRASP_MODELS, HOLE_DEPTH, PEG_LENGTH, SHAPES
+from mjx_peg.world.constants import (
+    GOAL_HEIGHT,
+    GRASP_MODELS,
+    HOLE_DEPTH,
+    HOLE_FITS,
+    HOLE_SCALE,
+    HOLE_SCALE_RANGE,
+    HOLE_SCALE_STEP,
+    PEG_LENGTH,
+    SHAPES,
+)
 from mjx_peg.world.rotations import (
     matrix_from_quat,
     matrix_from_rotvec,
@@ -55,6 +68,91 @@ def _range(name: str, value, lo_min: float = -math.inf, positive: bool = False) 
     return lo, hi
 
 
+HoleScaleRanges = tuple[tuple[str, float, float], ...]
+
+
+def hole_scale_ranges(value) -> HoleScaleRanges:
+    """((shape, low, high), ...) in SHAPES order: the hole scales (hole size / peg size) a
+    TaskConfig draws for the shapes it names; a shape not named takes its paper fit.
+
+    `value`: None (every shape its paper fit, `constants.HOLE_SCALE`); a fit's name in
+    `constants.HOLE_FITS` ("paper", "tight"); a number or a (low, high) range for every shape; a
+    mapping shape -> number or range; or this function's own output.
+    """
+    if value is None or (isinstance(value, Sequence) and not isinstance(value, str) and not value):
+        return ()
+    if isinstance(value, str):
+        if value not in HOLE_FITS:
+            raise UsageError(
+                f"unknown hole fit {value!r}: choose from {', '.join(HOLE_FITS)}, or give a number"
+            )
+        value = HOLE_FITS[value]
+    if isinstance(value, Mapping):
+        items = list(value.items())
+    elif (
+        isinstance(value, Sequence)
+        and value
+        and all(isinstance(v, Sequence) and not isinstance(v, str) and len(v) == 3 for v in value)
+    ):
+        items = [(v[0], v[1:]) for v in value]
+    else:
+        items = [(shape, value) for shape in SHAPES]
+    ranges = {}
+    for shape, scale in items:
+        if shape not in SHAPES:
+            raise UsageError(f"TaskConfig.hole_scale names an unknown shape {shape!r}")
+        lo, hi = _range("hole_scale", scale if isinstance(scale, Sequence) else (scale, scale))
+        if lo < HOLE_SCALE_RANGE[0] or hi > HOLE_SCALE_RANGE[1]:
+            raise UsageError(
+                f"TaskConfig.hole_scale of the {shape} must lie in [{HOLE_SCALE_RANGE[0]:g}, "
+                f"{HOLE_SCALE_RANGE[1]:g}] (hole size / peg size), got ({lo:g}, {hi:g})"
+            )
+        ranges[shape] = (lo, hi)
+    return tuple((s, *ranges[s]) for s in SHAPES if s in ranges)
+
+
+# The command lines' --hole-scale (`parse_hole_scale`).
+HOLE_SCALE_HELP = (
+    "the hole's clearance, hole size / peg size, of every shape: paper (the paper's fits, 1.03 D "
+    "round and 1.08 S with corners; default), tight (1.01 D, 1.02 S) or a number in "
+    f"[{HOLE_SCALE_RANGE[0]:g}, {HOLE_SCALE_RANGE[1]:g}]"
+)
+
+
+def parse_hole_scale(text: str) -> str | float:
+    """A command line's hole scale: a fit's name (`constants.HOLE_FITS`) or a number in
+    HOLE_SCALE_RANGE (UsageError otherwise)."""
+    if text in HOLE_FITS:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    lo, hi = HOLE_SCALE_RANGE
+    if not lo <= value <= hi:
+        raise UsageError(
+            f"--hole-scale must be {' or '.join(HOLE_FITS)} or a number in [{lo:g}, {hi:g}] "
+            f"(hole size / peg size), got {text!r}"
+        )
+    return value
+
+
+def hole_scale_of(shape: str, value: str | float | None) -> float:
+    """The one hole scale that `value` (None or "paper": the paper's fit; "tight"; a number)
+    gives `shape`."""
+    value = "paper" if value is None else value
+    lo, hi = dict((s, (a, b)) for s, a, b in hole_scale_ranges(value)).get(shape, (None, None))
+    if lo is None or lo != hi:
+        raise UsageError(f"hole scale {value!r} names no single value for the {shape}")
+    return lo
+
+
+def hole_scale_values(low: float, high: float) -> np.ndarray:
+    """The evenly spaced hole scales a (low, high) range draws from: both ends, at most
+    HOLE_SCALE_STEP apart (one value if low == high)."""
+    return np.linspace(low, high, int(math.ceil((high - low) / HOLE_SCALE_STEP - 1e-9)) + 1)
+
+
 @dataclasses.dataclass(frozen=True)
 class TaskConfig:
     """How trials are randomized. SI units: m, rad, s. Ranges are (low, high)."""
@@ -84,6 +182,10 @@ class TaskConfig:
     sensor_cutoff_scale: tuple[float, float] = (1.0, 1.0)
     sensor_noise_scale: tuple[float, float] = (1.0, 1.0)
     sensor_delay_offset: tuple[int, int] = (0, 0)
+    # The hole's clearance, hole size / peg size, per shape (`hole_scale_ranges`: None, a fit's
+    # name "paper" or "tight", a number or (low, high) range for every shape, or a mapping by
+    # shape); normalized to ((shape, low, high), ...); a shape not named takes its paper fit.
+    hole_scale: HoleScaleRanges = ()
     # Bound on kinematics.condition_number(q, PEG_LENGTH, "full") (6x6 tcp Jacobian, linear
     # rows in m, angular in rad) of the start and goal configurations. The default workspace
     # sits at 7-12; the bound rejects the folded elbow near the base and the stretched arm.
@@ -104,6 +206,7 @@ class TaskConfig:
         if not sizes or not all(math.isfinite(s) and s > 0.0 for s in sizes):
             raise UsageError(f"TaskConfig.sizes must be positive numbers (m), got {sizes}")
         object.__setattr__(self, "sizes", sizes)
+        object.__setattr__(self, "hole_scale", hole_scale_ranges(self.hole_scale))
         if self.grasp_model not in GRASP_MODELS:
             raise UsageError(
                 f"unknown grasp model {self.grasp_model!r}: choose from {', '.join(GRASP_MODELS)}"
@@ -208,11 +311,19 @@ class TaskConfig:
     def replace(self, **changes) -> TaskConfig:
         return dataclasses.replace(self, **changes)
 
+    def hole_scale_range(self, shape: str) -> tuple[float, float]:
+        """(low, high) hole scale (hole size / peg size) of `shape`'s trials."""
+        for name, lo, hi in self.hole_scale:
+            if name == shape:
+                return lo, hi
+        return HOLE_SCALE[shape], HOLE_SCALE[shape]
+
 
 # name -> (trailing shape, dtype) of every TrialSpec array; leading dim B.
 _SPEC_FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "shape_id": ((), np.int32),
     "size": ((), np.float64),
+    "hole_scale": ((), np.float64),  # the hole's size over the peg's
     "board_pos": ((2,), np.float64),
     "board_yaw": ((), np.float64),
     "friction": ((), np.float64),
@@ -240,6 +351,7 @@ class TrialSpec:
 
     shape_id: np.ndarray  # (B,) int32 index into SHAPES
     size: np.ndarray  # (B,) characteristic size S (m)
+    hole_scale: np.ndarray  # (B,) the hole's clearance: hole size / peg size (constants.HOLE_SCALE)
     board_pos: np.ndarray  # (B, 2) true hole centre x, y
     board_yaw: np.ndarray  # (B,) true board yaw about z (rad)
     friction: np.ndarray  # (B,) peg-board friction
@@ -307,6 +419,9 @@ class TrialSpec:
             raise UsageError(f"TrialSpec.shape_id must index SHAPES {SHAPES}")
         if np.any(self.size <= 0.0):
             raise UsageError("TrialSpec.size must be positive")
+        lo, hi = HOLE_SCALE_RANGE
+        if np.any((self.hole_scale < lo) | (self.hole_scale > hi)):
+            raise UsageError(f"TrialSpec.hole_scale must lie in [{lo:g}, {hi:g}]")
         rtr = self.tcp0_rot @ np.swapaxes(self.tcp0_rot, -1, -2)
         if np.any(np.abs(rtr - np.eye(3)) > 1e-6):
             raise UsageError("TrialSpec.tcp0_rot must hold rotation matrices")
@@ -479,4 +594,23 @@ def sample_trials(
     # The sensor's draws come from a child stream: the trials of a seed stay what they were
     # before the sensor was randomized.
     arrays.update(_sensor_draws(config, rng.spawn(1)[0], batch))
+    arrays["hole_scale"] = _hole_scales(config, arrays["shape_id"], rng)
     return TrialSpec.from_arrays(arrays).validate()
+
+
+def _hole_scales(config: TaskConfig, shape_id: np.ndarray, rng: np.random.Generator):
+    """(B,) each trial's hole scale: its shape's fixed value, or one drawn uniformly from the
+    values of its range (`hole_scale_values`) from a child stream, spawned only then: trials with
+    fixed clearances are those of before the clearance was a parameter."""
+    scales = np.zeros(len(shape_id))
+    ranges = {SHAPES.index(s): config.hole_scale_range(s) for s in config.shapes}
+    child = None
+    for i, (lo, hi) in ranges.items():
+        mine = shape_id == i
+        if lo == hi:
+            scales[mine] = lo
+            continue
+        child = child or rng.spawn(1)[0]
+        values = hole_scale_values(lo, hi)
+        scales[mine] = values[child.integers(len(values), size=int(mine.sum()))]
+    return scales

@@ -1,5 +1,11 @@
 """learn/cli.py (`python train.py`): flags into a TrainConfig; bad input is one line."""
 
+import json
+
+import pytest
+
+from mjx_peg.learn.curves import read_table
+
 
 def test_full_time_limit_flag(tiny_args, tiny_config):
     from mjx_peg.learn import cli
@@ -48,3 +54,40 @@ def test_a_rerun_whose_skill_constants_changed_is_refused(tiny_run, tiny_args, m
     assert len(err.splitlines()) == 1 and f"--out {out}" in err
     assert "skill_constants.spiral_speed: 0.03 there, 0.04 now" in err
     assert (out / "config.json").read_bytes() == before
+
+
+@pytest.mark.slow
+def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_py):
+    args = ["--trials", "16", "--num-envs", "8", "--time-limit", "0.3", "--no-progress",
+            "--processes", "1"]  # fmt: skip
+    done = train_py(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
+    assert done.returncode == 0, done.stderr
+    for seed in (3, 4):
+        config = json.loads((tmp_path / "set" / f"seed-{seed}" / "config.json").read_text())
+        assert config["seed"] == seed
+    rows = read_table(tmp_path / "set" / "seeds.csv")
+    assert rows["trials"] == [8.0, 16.0] and rows["success_rate_seeds"] == [2.0, 2.0]
+    assert (tmp_path / "set" / "seeds.png").stat().st_size > 10_000
+    assert "2 seeds (3, 4)" in done.stdout
+    again = train_py(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
+    assert again.returncode == 0 and again.stderr.count("is finished: skipped") == 2
+    bad = train_py(["--seeds", "3,3", "--out", str(tmp_path / "x"), *args])
+    assert bad.returncode == 2 and bad.stderr == "train.py: error: --seeds must name distinct seeds, got '3,3'\n"
+
+
+def test_init_from_takes_its_runs_observation_layout():
+    """--init-from a run trained on the names layout (policies/paper) reads that layout; asking
+    for another is one line; a new run reads the geometry layout unless told."""
+    import pytest
+
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn import cli
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv)))
+
+    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "names"
+    assert resolve().observation == "geometry"
+    assert resolve("--observation", "names").observation == "names"
+    with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
+        resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")

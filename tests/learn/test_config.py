@@ -41,11 +41,13 @@ def test_an_older_config_keeps_the_meaning_it_was_written_with():
     """A config.json without the fields it predates, or without the error ranges and budget that
     TrainConfig's defaults held before they became the quick preset's."""
     full = TrainConfig().to_json()
-    added = ("action_map", "grasp_model", "skill", "skill_constants")  # added since the first runs
+    # fields added since the first runs
+    added = ("action_map", "grasp_model", "skill", "skill_constants", "observation")
     defaulted = ("linear_mm", "angular_deg", "trials")  # the former defaults
     old = {k: v for k, v in full.items() if k not in added + defaulted}
     config = TrainConfig.from_json(old)
     assert config.action_map == "sigmoid" and config.grasp_model == "flange"
+    assert config.observation == "names" and TrainConfig().observation == "geometry"
     assert (config.skill, config.linear_mm, config.angular_deg, config.trials) == (
         "paper", 4.0, 6.0, 12288,
     )  # fmt: skip
@@ -60,7 +62,9 @@ def test_bad_configs_are_refused_naming_the_field():
         TrainConfig(trials=0)
     with pytest.raises(UsageError, match="--num-envs 100 must be a multiple of num_minibatches 3"):
         TrainConfig(num_envs=100, num_minibatches=3)
-    with pytest.raises(UsageError, match="unknown shape 'hexagon'"):
-        TrainConfig(shapes=("circle", "hexagon"))
+    with pytest.raises(UsageError, match="unknown shape 'octagon'"):
+        TrainConfig(shapes=("circle", "octagon"))
+    with pytest.raises(UsageError, match="unknown observation layout 'pixels'"):
+        TrainConfig(observation="pixels")
     with pytest.raises(UsageError, match="unknown skill 'search-old'"):
         TrainConfig(skill="search-old")

@@ -15,13 +15,13 @@ from mjx_peg.policy.network import controller_vector
 def test_env_reset_and_step_are_one_trial():
     config = TrainConfig(time_limit_s=1.0)
     centre = config.map_centre()
+    assert config.observation == "geometry"  # new runs read parts by their geometry
     env = VmapWrapper(InsertionEnv(config.task(), config.trial(), action_centre=centre))
     state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
     specs = specs_from_seeds(config.task(), np.asarray(state.info["seed"]))
-    np.testing.assert_allclose(state.obs["state"], observation.observe_specs(specs), atol=1e-6)
-    critic = np.concatenate(
-        [observation.observe_specs(specs), observation.privileged_specs(specs)], axis=1
-    )
+    policy_obs = observation.observe_specs(specs, "geometry")
+    np.testing.assert_allclose(state.obs["state"], policy_obs, atol=1e-6)
+    critic = np.concatenate([policy_obs, observation.privileged_specs(specs)], axis=1)
     np.testing.assert_allclose(state.obs["privileged_state"], critic, atol=1e-6)
     action = jnp.zeros((4, 38))
     after = jax.jit(env.step)(state, action)

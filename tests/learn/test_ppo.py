@@ -3,6 +3,7 @@ NumPy policy's."""
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_peg.learn.ppo import deterministic_actions
 from mjx_peg.learn.trainer import load_state
@@ -14,7 +15,8 @@ from mjx_peg.policy.network import controller_vector
 def test_numpy_policy_equals_jax_deterministic_action(tiny_run):
     out, _ = tiny_run
     config, state = load_state(out)
-    obs = np.random.default_rng(0).normal(size=(1000, observation.OBS_SIZE)).astype(np.float32)
+    width = len(observation.LAYOUTS[config.observation])
+    obs = np.random.default_rng(0).normal(size=(1000, width)).astype(np.float32)
     jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
     np_action = load_policy(out).act(obs)
     assert np.max(np.abs(np_action - jax_action)) < 1e-5
@@ -25,7 +27,7 @@ def test_prior_starts_at_the_baseline(tiny_config):
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.skill.baseline import baseline_params
 
-    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 8)), jnp.float32)
+    obs = jnp.asarray(np.random.default_rng(1).normal(size=(64, 9)), jnp.float32)  # geometry
     base = baseline_params()
     for cfg in (config, config.replace(action_map="sigmoid")):
         state = init_state(cfg, make_networks(cfg))
@@ -33,3 +35,40 @@ def test_prior_starts_at_the_baseline(tiny_config):
         vec = np.asarray(vec)
         np.testing.assert_allclose(vec[:, :2], np.broadcast_to(base[:2], (64, 2)), rtol=0.3)
         assert np.all(vec[:, 2] > 1.2e-3)  # lateral compliance near the baseline's 1.8e-3 m/N
+
+
+def test_a_generic_start_is_the_mid_range_controller_for_every_observation():
+    """--prior none: Brax's initialization, the mean head shrunk: every number mid-range (the
+    sigmoid map's action 0) whatever the input, the search's constants too."""
+    from mjx_peg.learn.config import PRESETS, prior_settings
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.skill.params import controller_from_action, vector_from_controller
+
+    config = PRESETS["paper"].replace(**prior_settings("none"))
+    assert config.action_size == 47 and config.map_centre() is None
+    state = init_state(config, make_networks(config))
+    width = len(observation.LAYOUTS[config.observation])
+    obs = jnp.asarray(np.random.default_rng(5).normal(size=(64, width)), jnp.float32)
+    action = np.asarray(deterministic_actions(config, state, obs))
+    assert np.max(np.abs(action)) < 0.05
+    middle = np.asarray(vector_from_controller(controller_from_action(np.zeros(47))))
+    vectors = np.asarray(controller_vector(action, None))
+    np.testing.assert_allclose(vectors[:, :2], np.broadcast_to(middle[:2], (64, 2)), rtol=0.02)
+    assert middle[0] == pytest.approx(100.0) and middle[38] == pytest.approx(0.005)
+
+
+def test_the_learning_rate_follows_the_updates_kl(tiny_config):
+    from mjx_peg.learn.ppo import adapt_learning_rate, learning_rate, make_optimizer
+
+    config = tiny_config.replace(kl_target=0.01, learning_rate=1e-3)
+    state = make_optimizer(config).init({"w": jnp.zeros(3)})
+    rates = []
+    for kl in (0.05, 0.05, 0.01, 0.001, 0.001):
+        state = adapt_learning_rate(config, state, jnp.asarray(kl))
+        rates.append(float(learning_rate(config, state)))
+    np.testing.assert_allclose(rates, [1e-3 / 1.5, 1e-3 / 2.25, 1e-3 / 2.25, 1e-3 / 1.5, 1e-3],
+                               rtol=1e-6)  # fmt: skip
+    fixed = tiny_config.replace(kl_target=0.0)
+    state = make_optimizer(fixed).init({"w": jnp.zeros(3)})
+    assert adapt_learning_rate(fixed, state, jnp.asarray(1.0)) is state
+    assert float(learning_rate(fixed, state)) == pytest.approx(fixed.learning_rate)

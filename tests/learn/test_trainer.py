@@ -17,9 +17,10 @@ import pytest
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.learn.curves import read_table
 from mjx_peg.learn.ppo import deterministic_actions
-from mjx_peg.learn.trainer import load_state
+from mjx_peg.learn.trainer import load_state, train
 from mjx_peg.policy import observation
 from mjx_peg.policy.export import load_policy
+from mjx_peg.policy.network import controller_vector
 from mjx_peg.skill.search import SKILLS, NamedSkill
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -66,7 +67,13 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     shipped = load_policy("paper")
     obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)
     action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
-    assert np.max(np.abs(action - shipped.act(obs))) < 1e-5
+    # the shipped policy's 38; the search's constants, which it did not learn, at the prior's
+    assert action.shape == (256, 47) and shipped.act(obs).shape == (256, 38)
+    assert np.max(np.abs(action[:, :38] - shipped.act(obs))) < 1e-5
+    np.testing.assert_allclose(action[:, 38:], 0.0, atol=1e-6)  # the centred map's centre
+    vectors = np.asarray(controller_vector(action, config.map_centre()))
+    np.testing.assert_allclose(vectors[:, 38:], np.broadcast_to(config.prior_vector()[38:],
+                                                                (256, 9)), rtol=1e-5)  # fmt: skip
     norm = state.normalizer_params
     assert int(norm.count.lo) == shipped.manifest["trials"] == 8192
     critic_mean = np.asarray(norm.mean["privileged_state"])
@@ -174,3 +181,47 @@ def test_distributed_two_local_processes(tmp_path, tiny_args):
     assert read_table(out / "metrics.csv")["trials"] == [16.0, 32.0, 48.0]
     assert len(read_table(out / "trials.csv")["trial"]) == 48
     assert load_policy(out).manifest["finished"]
+
+
+def test_a_run_evaluates_its_mean_on_held_out_trials_and_writes_tensorboard(tmp_path, tiny_config):
+    config = tiny_config.replace(trials=32, eval_every=1, eval_trials=4, time_limit_s=0.3)
+    train(config, tmp_path / "run", progress=False, tensorboard=True)
+    held = read_table(tmp_path / "run" / "eval.csv")
+    assert held["iteration"] == [1.0, 2.0] and held["trials"] == [16.0, 32.0]
+    assert all(0.0 <= s <= 1.0 for s in held["success_rate"])
+    (events,) = (tmp_path / "run" / "tensorboard").glob("events.out.tfevents.*")
+    from tensorboardX.proto.event_pb2 import Event
+
+    data, tags = events.read_bytes(), {}
+    while data:  # TFRecord framing: length (8 bytes), its CRC (4), the record, its CRC (4)
+        n = int.from_bytes(data[:8], "little")
+        event = Event.FromString(data[12 : 12 + n])
+        for value in event.summary.value:
+            tags.setdefault(value.tag, []).append((event.step, value.simple_value))
+        data = data[16 + n :]
+    assert [step for step, _ in tags["training/success_rate"]] == [16, 32]
+    assert [step for step, _ in tags["eval/success_rate"]] == [16, 32]
+    assert tags["eval/success_rate"][-1][1] == pytest.approx(held["success_rate"][-1], abs=1e-4)
+
+
+def test_normalized_actions_export_the_action_the_map_takes(tmp_path, tiny_config):
+    """Under normalized_actions the network acts in units of the exploration scale; the export
+    folds the scale into its head, so the NumPy policy's action is the JAX policy's scaled one,
+    and a run started from that export acts as it does."""
+    from mjx_peg.learn.config import prior_settings
+    from mjx_peg.learn.ppo import action_transform, from_map_action, to_map_action
+
+    config = tiny_config.replace(**prior_settings("none"), trials=16)
+    m = action_transform(config)
+    assert config.normalized_actions and m[2, 2] == config.init_noise_std
+    if config.joint_stiffness:  # k_t and k_theta: the level plus and minus the ratio
+        s_l, s_r = config.init_noise_std_level, config.init_noise_std
+        np.testing.assert_allclose(m[:2, :2], [[s_l, s_l], [s_r, -s_r]])
+    raw = np.random.default_rng(1).normal(size=(5, config.action_size)).astype(np.float32)
+    np.testing.assert_allclose(from_map_action(config, to_map_action(config, raw)), raw, atol=1e-5)
+    train(config, tmp_path / "run", progress=False)
+    _, state = load_state(tmp_path / "run")
+    width = len(observation.LAYOUTS[config.observation])
+    obs = np.random.default_rng(4).normal(size=(64, width)).astype(np.float32)
+    jax_action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
+    np.testing.assert_allclose(load_policy(tmp_path / "run").act(obs), jax_action, atol=1e-5)

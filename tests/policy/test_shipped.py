@@ -93,3 +93,42 @@ def test_an_unknown_name_is_one_line_and_exit_2(tmp_path):
     assert run.returncode == 2
     assert len(run.stderr.strip().splitlines()) == 1
     assert "no shipped policy of that name" in run.stderr
+
+
+def _names_observation(specs):
+    """The observation the shipped policies were trained on, written out here (not imported):
+    hole x, y, the yaw at the shape's symmetry, a one-hot of circle, square, triangle, the size."""
+    order = np.array([0.0, 4.0, 3.0])[specs.shape_id]
+    return np.concatenate(
+        [
+            (specs.hole_est_pos - np.array([0.4, 0.0])) / 0.3,
+            np.stack([np.cos(order * specs.hole_est_yaw), np.sin(order * specs.hole_est_yaw)], -1),
+            np.eye(3)[specs.shape_id],
+            ((specs.size - 0.05) / 0.01)[:, None],
+        ],
+        axis=-1,
+    )
+
+
+@pytest.mark.parametrize("name", ["paper", "quick", "transfer"])
+def test_the_shipped_policies_act_exactly_as_they_did(name):
+    """Each reads the names layout (its manifest predates the layouts) and gives, bit for bit,
+    the numbers its network gives for the observation it was trained on; on the robot too."""
+    from mjx_peg.policy import network
+    from mjx_peg.robot.runtime import HoleEstimate, controller_vector
+    from mjx_peg.world.task import TaskConfig, sample_trials
+
+    policy = load_policy(name)
+    assert policy.layout == "names" and "layout" not in policy.manifest["observation"]
+    config = TaskConfig(shapes=("circle", "square", "triangle"), sizes=(0.025, 0.05, 0.06))
+    specs = sample_trials(config, 11, 24)
+
+    def expected(specs):
+        obs = _names_observation(specs)
+        action = network.mean_action(policy.layers, policy.obs_mean, policy.obs_std, obs)
+        return np.asarray(network.controller_vector(action, policy.centre), np.float64)
+
+    assert policy.controller_vectors(specs).tobytes() == expected(specs).tobytes()
+    for i in range(0, len(specs), 5):  # the robot's batch of one
+        robot = controller_vector(policy, HoleEstimate.of_trial(specs, i))
+        assert robot.tobytes() == expected(specs.take([i]))[0].tobytes()

@@ -22,6 +22,7 @@ from mjx_peg.robot.runtime import (
     run_skill,
 )
 from mjx_peg.robot.sim_arm import SimArm
+from mjx_peg.skill import search
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import SKILLS, NamedSkill, skill_config
 from mjx_peg.world import constants
@@ -354,7 +355,8 @@ def test_cli_runs_and_reports(tmp_path, capsys):
         (["--policy", "no/such/run"], "--policy no/such/run: no such run directory"),
         (["--size", "-5"], "--size must be a number in [10, 100] mm, got -5"),
         (["--time-limit", "nan"], "--time-limit must be a number in [0.01, 600] s, got 'nan'"),
-        (["--shape", "hexagon"], "argument --shape: invalid choice"),
+        (["--shape", "octagon"], "argument --shape: invalid choice"),
+        (["--hole-scale", "loose"], "--hole-scale must be paper or tight or a number in [1.01,"),
     ],
 )
 def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
@@ -366,9 +368,10 @@ def test_cli_bad_input_is_one_line(argv, message, tmp_path, capsys):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"shape": "hexagon"}, "hole shape must be one of"),
+        ({"shape": "octagon"}, "hole shape must be one of"),
         ({"size": 0.0}, "hole size must be positive"),
         ({"x": float("nan")}, "hole x must be a finite number"),
+        ({"hole_scale": 1.5}, r"hole scale \(hole size / peg size\) must lie in \[1.01, 1.25\]"),
     ],
 )
 def test_hole_estimate_rejects_bad_values(kwargs, message):
@@ -386,3 +389,42 @@ def test_sim_arm_rejects_bad_arguments():
     with pytest.raises(ValueError, match="actuator_lag_s must be a number >= 0"):
         SimArm(specs, 0, actuator_lag_s=-0.005)
     assert constants.SHAPES[int(specs.shape_id[0])] in ("circle", "square")
+
+
+def test_a_policys_own_search_constants_reach_the_arm():
+    """A 47-number vector (the controller and the contact search's learned constants) runs on
+    the arm as the engine runs it: the constants of the skill's config give the 38-vector's run
+    bit for bit, other constants another run, the engine's to 1e-9 m."""
+    specs = _specs(n=1, linear_mm=6.0, angular_deg=4.0)
+    config = SHORT.replace(search=skill_config("spiral"))
+    own = np.array([getattr(config.search, name) for name in search.LEARNED])
+    own[search.LEARNED.index("movement_s")] = config.movement.duration
+    base = baseline_params()
+    runs = {}
+    for name, vec in (("38", base), ("47", np.concatenate([base, own])),
+                      ("slow", np.concatenate([base, own * np.r_[[1.0] * 8, 2.0]]))):  # fmt: skip
+        arm = SimArm(specs, 0)
+        runs[name] = run_skill(arm, SkillRuntime(vec, HoleEstimate.of_trial(specs, 0), config),
+                               done=arm.inserted)  # fmt: skip
+    np.testing.assert_array_equal(runs["47"].log["tcp_pos"], runs["38"].log["tcp_pos"])
+    slow = runs["slow"].log["tcp_pos"]
+    assert not np.array_equal(slow[:200], runs["38"].log["tcp_pos"][:200])  # T doubled: slower
+    engine = cpu_engine.run_on_cpu(specs, as_controller_params(np.concatenate([base, own * np.r_[
+        [1.0] * 8, 2.0]]), 1), config, threads=1)  # fmt: skip
+    assert engine.steps[0] == runs["slow"].commands
+
+
+def test_a_hole_estimate_gives_either_observation_of_its_part():
+    """The hole's clearance defaults to the shape's paper fit; the estimate observes itself in
+    the names layout (the shipped policies') or the geometry one, as the policy asks."""
+    from mjx_peg.policy import observation
+
+    hole = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03)
+    assert hole.hole_scale == 1.08
+    tight = HoleEstimate(0.45, -0.1, 0.3, "rectangle", 0.03, 1.02)
+    args = (np.array([4]), np.array([0.03]), np.array([1.02]), np.array([[0.45, -0.1]]))
+    np.testing.assert_array_equal(
+        tight.observation("geometry"), observation.observe_geometry(*args, np.array([0.3]))
+    )
+    assert tight.observation().shape == (1, 8) and tight.observation("geometry").shape == (1, 9)
+    assert tight.observation("geometry")[0, 7] == pytest.approx(0.02 * 0.0075 / 0.001)

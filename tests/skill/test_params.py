@@ -174,3 +174,53 @@ def test_a_centre_on_an_edge_is_refused():
         bad[i] = value
         with pytest.raises(ValueError, match=P.PARAM_NAMES[i].replace("[", r"\[")):
             P.check_centre(bad)
+
+
+# -- the contact search's learned constants (47 numbers) -------------------------------------------
+
+SEARCH_LOW = np.array([P.SEARCH_RANGES[n][0] for n in P.LEARNED_NAMES[38:]])
+SEARCH_HIGH = np.array([P.SEARCH_RANGES[n][1] for n in P.LEARNED_NAMES[38:]])
+
+
+def test_the_search_constants_follow_the_38_with_names_units_and_ranges():
+    assert P.N_LEARNED == 47 == len(P.LEARNED_NAMES) == len(P.LEARNED_UNITS)
+    assert P.LEARNED_NAMES[:38] == P.PARAM_NAMES
+    assert P.LEARNED_NAMES[38:] == ("spiral_pitch", "spiral_radius", "spiral_speed",
+                                    "spiral_axial", "align_rate", "align_depth",
+                                    "insert_depth", "insert_axial", "movement_s")  # fmt: skip
+    assert np.all(SEARCH_LOW < SEARCH_HIGH)
+
+
+@pytest.mark.parametrize("value", [1e6, -1e6, 0.0])
+def test_every_action_of_47_is_a_controller_and_a_search_within_its_ranges(value):
+    p = P.controller_from_action(np.full(47, value))
+    _assert_valid(p)
+    s = P.vector_from_search(p.search)
+    assert np.all(s >= SEARCH_LOW) and np.all(s <= SEARCH_HIGH)
+    if value == 0.0:  # the middle: geometric for log-scaled ranges, arithmetic otherwise
+        logged = np.array([P.SEARCH_RANGES[n][2] for n in P.LEARNED_NAMES[38:]])
+        middle = np.where(logged, np.sqrt(SEARCH_LOW * SEARCH_HIGH), (SEARCH_LOW + SEARCH_HIGH) / 2)
+        np.testing.assert_allclose(s, middle, rtol=1e-12)
+
+
+def test_the_47_vector_round_trips_through_both_maps():
+    rng = np.random.default_rng(3)
+    action = rng.normal(scale=1.5, size=(32, 47))
+    vector = np.asarray(P.vector_from_controller(P.controller_from_action(action)))
+    assert vector.shape == (32, 47)
+    back = np.asarray(P.action_from_controller(P.controller_from_vector(vector)))
+    np.testing.assert_allclose(back, action, atol=1e-8)
+    # a centre well inside the ranges, actions where tanh does not saturate
+    centre = P.vector_from_controller(P.controller_from_action(0.3 * action[0]))
+    moderate = np.clip(action, -1.0, 1.0)
+    moved = P.vector_from_controller(P.controller_from_centred_action(moderate, centre))
+    zero = P.vector_from_controller(P.controller_from_centred_action(np.zeros(47), centre))
+    np.testing.assert_allclose(zero, centre, rtol=1e-12)
+    again = P.centred_action_from_controller(P.controller_from_vector(moved), centre)
+    np.testing.assert_allclose(again, moderate, atol=1e-6)
+
+
+def test_a_centre_of_38_refuses_actions_of_47():
+    centre = P.vector_from_controller(P.controller_from_action(np.zeros(38)))
+    with pytest.raises(ValueError, match="centre of 38"):
+        P.controller_from_centred_action(np.zeros(47), centre)

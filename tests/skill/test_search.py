@@ -454,3 +454,70 @@ def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim():
     assert results["align"].success.sum() == 0
     assert results["spiral"].success.sum() >= 7
     assert not results["spiral"].protective_stop.any()
+
+
+def test_a_trials_own_constants_equal_to_the_configs_give_the_configs_offsets_bit_for_bit():
+    config = search.SKILLS["spiral"]
+    n = 16
+    wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (n, 2)), RNG.uniform(0.0, 40.0, n))
+    dy, tilt = RNG.normal(0.0, 1e-3, (n, 6)), RNG.normal(0.0, 0.2, (n, 3))
+    height = RNG.uniform(0.0, 0.09, n)
+    spiral = np.stack([RNG.uniform(0, 60, n), RNG.uniform(0.07, 0.09, n), RNG.uniform(0, 1, n)],
+                      axis=-1)  # fmt: skip
+    values = search.search_values(config, 2.0, height)
+    assert values.movement_s[0] == config.movement_s and values.spiral_pitch.shape == (n,)
+    goal = _over_goal(height)
+    for own in (None, values):
+        got = (search.searched_offset(config, dy, wrench, tilt, spiral, height, own),
+               search.aligned_rotation(config, tilt, wrench, *goal, 0.002, own),
+               search.spiral_path(config, spiral[:, 0], own))  # fmt: skip
+        if own is None:
+            expected = got
+    for e, g in zip(expected, got, strict=True):
+        np.testing.assert_array_equal(g, e)
+
+
+def test_a_trials_own_spiral_runs_at_its_own_pitch_speed_and_radius():
+    config = search.SKILLS["spiral"]
+    tau = np.linspace(0.0, 200.0, 20001)
+    for pitch, speed, radius in ((0.004, 0.01, 0.012), (0.02, 0.08, 0.045)):
+        values = search.search_values(config, 2.0, tau)._replace(
+            spiral_pitch=np.full_like(tau, pitch), spiral_speed=np.full_like(tau, speed),
+            spiral_radius=np.full_like(tau, radius))  # fmt: skip
+        s = search.spiral_path(config, tau, values)
+        r = np.linalg.norm(s, axis=-1)
+        assert r.max() == pytest.approx(radius, rel=1e-6)
+        moving = tau > config.spiral_wait + 0.5
+        v = np.linalg.norm(np.diff(s, axis=0), axis=-1) / np.diff(tau)
+        # the tangential speed is v; the radius grows at p v / (2 pi r) on top
+        assert np.median(v[moving[1:]]) == pytest.approx(speed, rel=0.02)
+        # successive outward turns are a pitch apart
+        out = (tau > config.spiral_wait) & (r < radius * 0.99)
+        assert np.diff(np.sort(r[out & (np.abs(s[:, 1]) < 1e-4) & (s[:, 0] > 0)]))[-1] < pitch * 1.1
+
+
+def test_the_spirals_lengths_follow_the_parts_size_where_told():
+    absolute = search.SKILLS["spiral"]
+    scaled = absolute.replace(part_scale="size")
+    size = np.array([0.05, 0.025, 0.08])
+    assert search.for_part(absolute, None, 2.0, size) is None  # the config's, as set
+    values = search.for_part(scaled, None, 2.0, size)
+    for name in search.SIZE_SCALED:
+        np.testing.assert_allclose(getattr(values, name),
+                                   getattr(absolute, name) * size / 0.05, rtol=1e-15)  # fmt: skip
+    np.testing.assert_array_equal(values.align_depth, absolute.align_depth)  # the hole's depth
+    at_50 = search.for_part(scaled, None, 2.0, size[:1])
+    assert at_50.spiral_pitch[0] == absolute.spiral_pitch  # the paper's size: as set, exactly
+    with pytest.raises(UsageError, match="part_scale"):
+        absolute.replace(part_scale="shape")
+
+
+def test_a_skills_record_reads_back_names_and_numbers_alike():
+    config = search.SKILLS["spiral"].replace(part_scale="size")
+    record = search.constants_record(config)
+    assert record["part_scale"] == "size" and record["spiral_pitch"] == 0.01
+    assert search.constants_from_record(record) == config
+    with pytest.raises(UsageError, match="part_scale must be a name"):
+        search.constants_from_record({**record, "part_scale": 1.0})
+    with pytest.raises(UsageError, match="spiral_pitch must be a number"):
+        search.constants_from_record({**record, "spiral_pitch": "ten"})

@@ -101,7 +101,8 @@ def test_act_runs_the_named_skill(tmp_path, monkeypatch, skill):
         return {"all": dict.fromkeys(("vision_success", "sampled_success", "exact_success"), 1)}
 
     monkeypatch.setattr(act, "run_act", fake_run_act)
-    monkeypatch.setattr(localizer.Localizer, "load", staticmethod(lambda path: None))
+    shipped = localizer.Localizer.load(cli.SHIPPED_MODEL)  # act checks it localizes the shapes
+    monkeypatch.setattr(localizer.Localizer, "load", staticmethod(lambda path: shipped))
     argv = ["act", "--out", str(tmp_path / "a"), "--trials", "1", "--no-progress"]
     assert cli.main(argv + (["--skill", skill] if skill else [])) == 0
     assert seen == {"skill": skill}

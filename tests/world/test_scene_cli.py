@@ -50,7 +50,7 @@ def test_cli_writes_xml_and_png(tmp_path):
 @pytest.mark.parametrize(
     "args",
     [
-        ("--shape", "hexagon", "--size", "25"),
+        ("--shape", "octagon", "--size", "25"),
         ("--shape", "circle", "--size", "-3"),
         ("--shape", "circle", "--size", "abc"),
     ],

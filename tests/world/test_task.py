@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from mjx_peg.world import constants, task
 from mjx_peg.world import kinematics as kin
-from mjx_peg.world import task
 from mjx_peg.world.rotations import rotvec_from_matrix, tool_down_rotation
 from mjx_peg.world.task import HOLE_DEPTH, PEG_LENGTH, SHAPES, TaskConfig, TrialSpec, sample_trials
 
@@ -169,8 +169,10 @@ def test_endless_rejection_raises(monkeypatch):
 
 
 def test_bad_configs_fail_with_one_line():
-    message = _one_line_error("unknown shape", shapes=("circle", "hexagon"))
-    assert message == "unknown shape 'hexagon': choose from circle, square, triangle"
+    message = _one_line_error("unknown shape", shapes=("circle", "octagon"))
+    assert message == (
+        "unknown shape 'octagon': choose from circle, square, triangle, hexagon, rectangle"
+    )
     _one_line_error("sizes must be positive", sizes=(0.05, 0.0))
     _one_line_error("sizes must be positive", sizes=(-0.01,))
     _one_line_error("linear_error", linear_error=-0.001)
@@ -195,7 +197,7 @@ def test_presets_and_replace():
     changed = paper.replace(shapes=["triangle"], sizes=[0.025, 0.06])
     assert changed.shapes == ("triangle",) and changed.sizes == (0.025, 0.06)
     with pytest.raises(ValueError, match="unknown shape"):
-        paper.replace(shapes=("hexagon",))
+        paper.replace(shapes=("octagon",))
     assert TaskConfig().time_limit_s == 60.0
 
 
@@ -292,3 +294,86 @@ def test_the_board_model_puts_the_grasp_errors_on_the_board():
     np.testing.assert_array_equal(again.board_tilt, 0.0)
     with pytest.raises(ValueError, match="unknown grasp model 'wrist'"):
         TaskConfig(grasp_model="wrist")
+
+
+# --- the part's hole clearance ------------------------------------------------------------------
+
+
+def test_hole_scale_forms_normalize_to_ranges_per_shape():
+    assert TaskConfig().hole_scale == () and TaskConfig(hole_scale="paper").hole_scale == tuple(
+        (s, constants.HOLE_SCALE[s], constants.HOLE_SCALE[s]) for s in SHAPES
+    )
+    tight = TaskConfig(hole_scale="tight")
+    assert tight.hole_scale_range("circle") == (1.01, 1.01)
+    assert tight.hole_scale_range("rectangle") == (1.02, 1.02)
+    assert TaskConfig(hole_scale=1.05).hole_scale_range("triangle") == (1.05, 1.05)
+    ranged = TaskConfig(hole_scale={"square": (1.02, 1.08)})
+    assert ranged.hole_scale_range("square") == (1.02, 1.08)
+    assert ranged.hole_scale_range("circle") == (1.03, 1.03)  # not named: the paper's fit
+    assert TaskConfig(hole_scale=ranged.hole_scale) == ranged  # its own form reads back
+    assert ranged.replace(shapes=("triangle",)).hole_scale_range("square") == (1.02, 1.08)
+    np.testing.assert_allclose(task.hole_scale_values(1.01, 1.03), [1.01, 1.015, 1.02, 1.025, 1.03])
+    assert (
+        task.hole_scale_of("hexagon", "tight") == 1.02
+        and task.hole_scale_of("circle", None) == 1.03
+    )
+    assert task.parse_hole_scale("tight") == "tight" and task.parse_hole_scale("1.04") == 1.04
+    for text in ("loose", "1.0", "2", "nan"):
+        with pytest.raises(ValueError, match="--hole-scale must be paper or tight or a number"):
+            task.parse_hole_scale(text)
+
+
+def test_bad_hole_scales_fail_with_one_line():
+    _one_line_error("unknown hole fit 'loose'", hole_scale="loose")
+    _one_line_error(r"hole_scale of the circle must lie in \[1.01, 1.25\]", hole_scale=1.005)
+    _one_line_error("hole_scale of the square must lie", hole_scale={"square": (1.02, 1.5)})
+    _one_line_error("names an unknown shape 'octagon'", hole_scale={"octagon": 1.05})
+    _one_line_error("hole_scale must be finite with low <= high", hole_scale=(1.08, 1.02))
+    with pytest.raises(ValueError, match="hole scale 'tight'|no single value"):
+        task.hole_scale_of("square", (1.02, 1.08))
+
+
+def test_fixed_clearances_leave_the_draws_alone_and_ranges_draw_their_values():
+    """The paper's fits draw nothing: every array but hole_scale is what the same seed gave
+    before the clearance was a parameter (the fingerprint's bit-identity); a range draws its
+    evenly spaced values, both ends included, from a child stream that leaves the rest alone."""
+    shapes = ("circle", "square", "hexagon", "rectangle")
+    plain = sample_trials(TaskConfig(shapes=shapes), 6, 600)
+    expected = np.array([constants.HOLE_SCALE[SHAPES[i]] for i in plain.shape_id])
+    np.testing.assert_array_equal(plain.hole_scale, expected)
+    ranged = sample_trials(
+        TaskConfig(shapes=shapes, hole_scale={"square": (1.02, 1.08), "circle": (1.01, 1.03)}),
+        6,
+        600,
+    )
+    for name, value in plain.to_arrays().items():
+        if name != "hole_scale":
+            np.testing.assert_array_equal(getattr(ranged, name), value, err_msg=name)
+    for shape, lo, hi in (("circle", 1.01, 1.03), ("square", 1.02, 1.08)):
+        mine = ranged.hole_scale[ranged.shape_id == SHAPES.index(shape)]
+        assert set(np.round(mine, 9)) == set(np.round(task.hole_scale_values(lo, hi), 9))
+    rest = ~np.isin(ranged.shape_id, [0, 1])
+    np.testing.assert_array_equal(ranged.hole_scale[rest], plain.hole_scale[rest])
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_every_part_size_and_fit_samples_reachable_starts_above_its_hole(shape):
+    config = TaskConfig(shapes=(shape,), sizes=(0.01, 0.05, 0.08), hole_scale={shape: (
+        constants.TIGHT_HOLE_SCALE[shape], constants.HOLE_SCALE[shape])})  # fmt: skip
+    specs = sample_trials(config, 2, 60).validate()
+    assert set(np.round(specs.size, 9)) == {0.01, 0.05, 0.08}
+    assert specs.hole_scale.min() >= constants.TIGHT_HOLE_SCALE[shape]
+    assert specs.hole_scale.max() <= constants.HOLE_SCALE[shape]
+    np.testing.assert_array_equal(specs.tcp0_pos[:, :2], specs.hole_est_pos)
+    assert np.all(specs.tcp0_pos[:, 2] >= HOLE_DEPTH + config.start_height[0])
+
+
+def test_specs_saved_before_the_clearance_have_the_paper_fits():
+    specs = sample_trials(TaskConfig(shapes=("circle", "square", "triangle")), 3, 30)
+    old = {k: v for k, v in specs.to_arrays().items() if k != "hole_scale"}
+    again = TrialSpec.from_arrays(old).validate()
+    np.testing.assert_array_equal(again.hole_scale, specs.hole_scale)
+    np.testing.assert_array_equal(again.hole_scale, np.where(again.shape_id == 0, 1.03, 1.08))
+    arrays = specs.to_arrays()
+    with pytest.raises(ValueError, match="hole_scale must lie in"):
+        TrialSpec(**{**arrays, "hole_scale": np.full(30, 1.0)}).validate()
