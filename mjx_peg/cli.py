@@ -195,7 +195,7 @@ def SEED_LIST(value: str) -> tuple[int, ...]:  # noqa: N802 (a flag type, like S
     return seeds
 
 
-SEED_LIST.range_text = "seeds separated by commas, e.g. 0,1,2"
+SEED_LIST.range_text = f"distinct seeds separated by commas, each in 0..{2**32 - 1:,}"
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
 THREADS = integer(1, cores(), "the cores this process may use")  # the CPU engine's lanes
 

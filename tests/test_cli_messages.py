@@ -39,10 +39,13 @@ def _error(capsys, main, argv) -> str:
         (robot_cli.main, ["--model", "controller"], "--model controller asks a UR5e's controller"),
         (robot_cli.main, ["--friction-comp"], "--friction-comp asks a UR5e's controller"),
         (baseline_cli.main, ["--shapes", "circle,circle"], "--shapes names a shape twice"),
-        (vision_cli.main, ["render", "--out", "split", "--count", "1", "--sizes", "30"],
-         "--sizes must be sizes of mm of 25, 50, 60, got '30'"),
-        (vision_cli.main, ["render", "--out", "split", "--count", "1", "--shapes", "hexagon"],
-         "--shapes must name shapes of circle, square, triangle"),
+        (vision_cli.main, ["render", "--out", "split", "--count", "1", "--sizes", "90"],
+         "--sizes must be sizes S in mm, each in [10, 80], got '90'"),
+        (vision_cli.main, ["render", "--out", "split", "--count", "1", "--shapes", "octagon"],
+         "--shapes must name shapes of circle, square, triangle, hexagon, rectangle"),
+        (baseline_cli.main, ["--hole-scale", "1.3"], "--hole-scale must be paper or tight or a "
+         "number in [1.01, 1.25]"),
+        (demo_cli.main, ["--hole-scale", "nan"], "--hole-scale must be paper or tight"),
     ],
 )  # fmt: skip
 def test_a_bad_value_is_named_with_its_flag(main, argv, expected, tmp_path, monkeypatch, capsys):
