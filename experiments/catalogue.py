@@ -2,7 +2,7 @@
 
     python experiments/catalogue.py --out /tmp/catalogue                 # every case
     python experiments/catalogue.py --out /tmp/catalogue --mode ctrl-c   # Ctrl-C at 0.1..2 s, 5x
-    python experiments/catalogue.py --out /tmp/catalogue --only ray      # names containing "ray"
+    python experiments/catalogue.py --out /tmp/catalogue --only ray,kill # names containing either
     python experiments/catalogue.py --list                               # the cases, not run
 
 It clones this checkout's HEAD into OUT/clone (`git clone`), makes shared fixtures there once (a
@@ -255,6 +255,10 @@ POLICY_DAMAGE: dict[str, Callable[[Path], None]] = {
         names=d["observation"]["names"][::-1])),
     "ranges-list": _m(lambda d: d["action"].update(ranges=[1])),
     "centre-short": _m(lambda d: d["action"]["ranges"].update(centre=[1.0])),
+    "layout-list": _m(lambda d: d["observation"].update(layout=[1])),
+    "layout-unknown": _m(lambda d: d["observation"].update(layout="pixels")),
+    "layout-geometry": _m(lambda d: d["observation"].update(layout="geometry")),
+    "outputs-47": _m(lambda d: d["network"]["layers"][-1].__setitem__(1, 47)),
     "manifest-null": lambda r: (r / "manifest.json").write_text("null"),
     "manifest-empty": lambda r: replace_with(r / "manifest.json", "empty"),
     "manifest-fifo": lambda r: replace_with(r / "manifest.json", "fifo"),
@@ -714,21 +718,21 @@ def edge_cases(runner: Runner) -> list[Case]:
         "train.py": (["--trials", "8", "--num-envs", "8", "--time-limit", "0.01", "--processes",
                       "0", "--no-progress", "--out", "new/out"],
                      ["--seed", "--num-envs", "--trials", "--time-limit", "--checkpoint-every",
-                      "--threads", "--processes"]),
+                      "--threads", "--processes", "--eval-every", "--seeds"]),
         "eval.py": (["--policy", "baseline", "--grid", "custom", "--linear-mm", "1",
                      "--angular-deg", "1", "--trials", "1", "--time-limit", "0.01", "--processes",
                      "0", "--no-progress", "--out", "new/out"],
                     ["--size", "--trials", "--time-limit", "--seed", "--threads", "--processes",
-                     "--chunk-trials", "--linear-mm", "--angular-deg"]),
+                     "--chunk-trials", "--linear-mm", "--angular-deg", "--hole-scale"]),
         "mjx-peg-baseline": (["--trials", "1", "--time-limit", "0.01", "--shapes", "circle"],
                              ["--size", "--linear-mm", "--angular-deg", "--trials",
-                              "--time-limit", "--seed"]),
+                              "--time-limit", "--seed", "--hole-scale"]),
         "robot": (["--trials", "1", "--time-limit", "0.01", "--no-progress", "--out", "new/out"],
                   ["--size", "--linear-mm", "--angular-deg", "--trials", "--seed", "--command-hz",
-                   "--actuator-lag-ms", "--time-limit", "--hole"]),
+                   "--actuator-lag-ms", "--time-limit", "--hole", "--hole-scale"]),
         "mjx-peg-demo": (["--time-limit", "0.01", "--frames", "0", "--out", "new/out"],
                          ["--size", "--linear-mm", "--angular-deg", "--seed", "--time-limit",
-                          "--range", "--frames"]),
+                          "--range", "--frames", "--hole-scale"]),
         "mjx-peg-vision render": (["--out", "new/out", "--count", "1", "--width", "64",
                                    "--height", "64", "--no-progress"],
                                   ["--count", "--seed", "--width", "--height", "--sizes"]),
@@ -736,7 +740,7 @@ def edge_cases(runner: Runner) -> list[Case]:
                                 "--no-progress", "--out", "new/out"],
                                ["--size", "--trials", "--time-limit", "--seed", "--threads"]),
         "mjx-peg-scene": (["--shape", "circle", "--width", "16", "--height", "16", "--out",
-                           "new/out"], ["--size", "--width", "--height"]),
+                           "new/out"], ["--size", "--width", "--height", "--hole-scale"]),
     }  # fmt: skip
     cases = []
     for prog, (fixed, names) in flags.items():
@@ -777,9 +781,20 @@ def edge_cases(runner: Runner) -> list[Case]:
                           "0.02", "--out", "new/out"],
         "scene-size-10": [*runner.program("mjx-peg-scene"), "--shape", "triangle", "--size",
                           "10", "--width", "16", "--height", "16", "--out", "new/out"],
+        "scene-hexagon-hole-1.25": [*runner.program("mjx-peg-scene"), "--shape", "hexagon",
+                                    "--size", "80", "--hole-scale", "1.25", "--width", "16",
+                                    "--height", "16", "--out", "new/out"],
+        "baseline-rectangle-tight": [*runner.program("mjx-peg-baseline"), "--shapes", "rectangle",
+                                     "--hole-scale", "tight", "--trials", "1", "--time-limit",
+                                     "0.02"],
+        "train-seed-and-seeds": [*runner.program("train.py"), "--seed", "1", "--seeds", "1,2",
+                                 "--trials", "8", "--num-envs", "8", "--out", "new/out"],
     }  # fmt: skip
     for name, argv in good.items():
-        cases.append(Case(f"edge/valid/{name}", "edge values", argv, expect="any"))
+        refused = name == "train-seed-and-seeds"
+        cases.append(Case(f"edge/valid/{name}", "edge values", argv,
+                          expect="error" if refused else "any",
+                          check=_nothing_new if refused else None))  # fmt: skip
     return cases
 
 
@@ -1493,7 +1508,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("/tmp/catalogue"))
     p.add_argument("--mode", choices=("cases", "ctrl-c"), default="cases")
-    p.add_argument("--only", default="", help="run the cases whose name contains this")
+    p.add_argument("--only", default="", help="run the cases whose name contains one of these "
+                   "(comma-separated)")  # fmt: skip
     p.add_argument("--repeats", type=int, default=5, help="ctrl-c: tries per instant")
     p.add_argument("--list", action="store_true", help="print the cases' names, run nothing")
     p.add_argument("--source", type=Path, default=HERE, help="the checkout to clone")
@@ -1501,7 +1517,8 @@ def main(argv=None) -> int:
     out = args.out.resolve()
     RUNNER = runner = Runner(out)
     cases = all_cases(runner) if args.mode == "cases" else ctrl_c_cases(runner, args.repeats)
-    cases = [c for c in cases if args.only in c.name]
+    only = args.only.split(",")
+    cases = [c for c in cases if any(part in c.name for part in only)]
     names = [c.name for c in cases]
     assert len(set(names)) == len(names), "case names repeat"
     if args.list:
