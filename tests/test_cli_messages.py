@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from mjx_peg.evaluation import baseline_cli, demo_cli, eval_cli
+from mjx_peg.learn import cli as train_cli
 from mjx_peg.policy import shipped
 from mjx_peg.robot import cli as robot_cli
 from mjx_peg.vision import cli as vision_cli
@@ -46,6 +47,7 @@ def _error(capsys, main, argv) -> str:
         (baseline_cli.main, ["--hole-scale", "1.3"], "--hole-scale must be paper or tight or a "
          "number in [1.01, 1.25]"),
         (demo_cli.main, ["--hole-scale", "nan"], "--hole-scale must be paper or tight"),
+        (train_cli.main, ["--seed", "1", "--seeds", "1,2"], "--seed and --seeds: give one of them"),
     ],
 )  # fmt: skip
 def test_a_bad_value_is_named_with_its_flag(main, argv, expected, tmp_path, monkeypatch, capsys):
