@@ -1480,8 +1480,8 @@ def run_case(runner: Runner, case: Case) -> dict:
             r = case.script(case, folder)
         else:
             r = runner.run(case.argv, folder, case.env, case.timeout)
-        if case.check is not None and not r.note:
-            r.note = case.check(folder, r) or ""
+        if case.check is not None and not r.note.startswith(("lost", "wrong")):
+            r.note = case.check(folder, r) or r.note
     except Exception as e:  # the catalogue's own failure: recorded, not hidden
         r = Result(-999, "", f"catalogue error: {type(e).__name__}: {e}", 0.0, "")
     kind = classify(case, r) if r.code != -999 else "catalogue-error"
