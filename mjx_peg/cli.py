@@ -7,21 +7,24 @@
     def main(argv=None) -> int: ...                        # line, exit 2; Ctrl-C: one line, 130
 
 Where a command writes, and how, is `outdir`'s; only the command-line modules import this one.
-It imports nothing of the package but `errors` and `cores`, so a CLI can parse its arguments
-before importing MuJoCo or JAX.
+It imports nothing of the package but `errors`, `cores` and `signals`, so a CLI can parse its
+arguments (and take Ctrl-C) before importing MuJoCo or JAX.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import functools
 import math
+import os
 import re
+import signal
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from mjx_peg import errors
+from mjx_peg import errors, signals
 from mjx_peg.cores import cores
 from mjx_peg.errors import UsageError
 
@@ -37,6 +40,11 @@ def _shown(text) -> str:
     return text if len(text) <= _SHOWN else text[: _SHOWN - 5] + "...'"
 
 
+def number_text(x: float) -> str:
+    """`x` as short as it reads back exactly: 500.0001 stays 500.0001, 50.0 is 50."""
+    return f"{x:g}" if float(f"{x:g}") == x else repr(x)
+
+
 def fail(prog: str, error) -> int:
     """Print `PROG: error: MESSAGE` (one line) on stderr and return the usage exit status."""
     print(f"{prog}: error: {errors.message(error)}", file=sys.stderr)
@@ -50,30 +58,61 @@ def note(prog: str, text: str) -> None:
 
 def entry(prog: str, interrupted: str = "interrupted") -> Callable:
     """Decorate a CLI's main(argv) -> int: every user error is one line and exit status 2, an
-    argparse exit returns its status, Ctrl-C is one line and 130. Other exceptions (bugs) keep
-    their traceback. The CPU engine's worker processes, if the command started them, stop when
-    it returns (a main() called from Python leaves none behind)."""
+    argparse exit returns its status, Ctrl-C is one line and 130 (SIGTERM: 143). Other
+    exceptions (bugs) keep their traceback. Called as the program (argv None), the command takes
+    SIGINT and SIGTERM first thing (`signals`): until it starts working a signal ends it at
+    once, after that it unwinds. The CPU engine's worker processes, if the command started them,
+    stop when it returns (a main() called from Python leaves none behind)."""
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
         def run(argv=None) -> int:
+            program = argv is None
+            if program:
+                signals.install(prog)
+                _printable_streams()
+            code = None
             try:
-                return main(argv)
+                code = main(argv)
             except SystemExit as exc:  # argparse: --help (0) or Parser.error (2, printed)
-                return exc.code if isinstance(exc.code, int) else fail(prog, exc.code)
+                code = exc.code if isinstance(exc.code, int) else fail(prog, exc.code)
             except USER_ERRORS as exc:
-                return fail(prog, exc)
-            except KeyboardInterrupt:
-                print(f"{prog}: {interrupted}", file=sys.stderr)
-                return EXIT_INTERRUPTED
+                code = fail(prog, exc)
+            except KeyboardInterrupt as exc:
+                stopped = isinstance(exc, signals.Terminated)
+                print(f"{prog}: {'terminated' if stopped else interrupted}", file=sys.stderr)
+                code = signals.EXIT_STATUS[signal.SIGTERM if stopped else signal.SIGINT]
             finally:
                 workers = sys.modules.get("mjx_peg.engines.processes")
                 if workers is not None:
                     workers.shutdown()
+                if program:
+                    code = _after_signal(prog, code)
+                    signals.finished()
+            return code
 
         return run
 
     return wrap
+
+
+def _printable_streams() -> None:
+    """stdout and stderr write what their encoding cannot (a "±" under PYTHONIOENCODING=ascii)
+    as an escape instead of failing."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
+
+
+def _after_signal(prog: str, code: int | None) -> int | None:
+    """The exit status of a command that a signal stopped: one a KeyboardInterrupt swallowed
+    somewhere below still ends as stopped, saying so once."""
+    got = signals.received()
+    if got is None:
+        return code
+    if code not in signals.EXIT_STATUS.values():
+        print(f"{prog}: {signals.WORD[got]}", file=sys.stderr)
+    return signals.EXIT_STATUS[got]
 
 
 class Parser(argparse.ArgumentParser):
@@ -84,6 +123,12 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):
         # "argument --size: must be ..." reads "--size must be ..."
         message = re.sub(r"^argument (\S+?)(?:/\S+)?: (?=must )", r"\1 ", message)
+        # "--hole -450,120,30": argparse takes the value for an option and wants one
+        message = re.sub(
+            r"^argument (--\S+?)(?:/\S+)?: expected one argument$",
+            r"\1 expects a value; one that starts with '-' is written \1=-VALUE",
+            message,
+        )
         raise SystemExit(fail(self.prog, message))
 
     def add_argument(self, *args, **kwargs):
@@ -126,7 +171,7 @@ def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[
             x = math.nan
         ok = math.isfinite(x) and (lo < x if lo_open else lo <= x) and x <= hi
         if not ok:
-            got = _shown(value) if not math.isfinite(x) else f"{x:g}"
+            got = _shown(value) if not math.isfinite(x) else number_text(x)
             raise argparse.ArgumentTypeError(f"must be a number in {text}, got {got}")
         return x
 
@@ -146,11 +191,11 @@ def SEED_LIST(value: str) -> tuple[int, ...]:  # noqa: N802 (a flag type, like S
     """Distinct seeds separated by commas, e.g. 0,1,2 (each a SEED)."""
     seeds = tuple(SEED(part.strip()) for part in str(value).split(","))
     if len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"repeats a seed: {value}")
+        raise argparse.ArgumentTypeError(f"must name distinct seeds, got {_shown(value)}")
     return seeds
 
 
-SEED_LIST.range_text = "seeds separated by commas, e.g. 0,1,2"
+SEED_LIST.range_text = f"distinct seeds separated by commas, each in 0..{2**32 - 1:,}"
 TRIALS = integer(1, 100_000)  # trials in one call of a CLI that holds them all at once
 THREADS = integer(1, cores(), "the cores this process may use")  # the CPU engine's lanes
 
@@ -196,12 +241,35 @@ def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
     )
 
 
+def ray_address(text: str) -> str:
+    """argparse type of --ray: `auto`, `local` or HOST:PORT (a host name or address, a port in
+    1..65535, in ASCII digits); the address as given."""
+    text = str(text).strip()
+    if text in ("auto", "local"):
+        return text
+    host, _, port = text.rpartition(":")
+    shown = _shown(text)
+    if not host or not port:
+        raise argparse.ArgumentTypeError(f"must be auto, local or HOST:PORT, got {shown}")
+    try:
+        host.strip("[]").encode("idna")  # a label over 63 characters, an empty label
+    except UnicodeError:
+        raise argparse.ArgumentTypeError(f"must start with a host name, got {shown}") from None
+    if not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        raise argparse.ArgumentTypeError(f"must end in a port 1..65535, got {shown}")
+    return text
+
+
+ray_address.range_text = "auto, local or HOST:PORT with a port in 1..65535"
+
+
 def add_ray_option(parser: argparse.ArgumentParser) -> None:
     """--ray [ADDRESS]: the CPU engine's trials on a Ray cluster (train.py, eval.py)."""
     parser.add_argument(
         "--ray",
         nargs="?",
         const="local",
+        type=ray_address,
         metavar="ADDRESS",
         help="CPU engine: run the trials on a Ray cluster, one lane per CPU, the same results "
         "(auto: the cluster `ray start` runs on this node; HOST:PORT: another; no address: a "
@@ -232,6 +300,22 @@ def resolve_processes(value: int | None, engine: str) -> int | None:
     if value is None:
         value = cores() if cores() > 1 else 0
     return value or None
+
+
+def check_jax() -> None:
+    """UsageError naming JAX_PLATFORMS if JAX cannot start a back-end (a GPU asked for where
+    there is none, an unknown name): training runs on JAX."""
+    import jax
+
+    try:
+        jax.devices()
+    except Exception as e:  # JAX raises RuntimeError, or fails an assertion, for these
+        platforms = os.environ.get("JAX_PLATFORMS")
+        why = " ".join(str(e).split())[:200] or type(e).__name__
+        where = f"JAX_PLATFORMS={platforms!r}" if platforms is not None else "JAX"
+        raise UsageError(
+            f"{where}: JAX cannot start a back-end ({why}); set JAX_PLATFORMS=cpu or leave it unset"
+        ) from None
 
 
 MAX_RANGES = 10_000  # error ranges in one evaluation grid (the paper's has 350)
@@ -299,6 +383,15 @@ def nonempty_path(text: str) -> Path:
     path = Path(text)
     try:
         path.resolve()  # Python 3.11 raises RuntimeError on a symlink loop, 3.13 OSError
-    except (RuntimeError, OSError):
-        raise argparse.ArgumentTypeError(f"{text!r} is a symbolic link loop") from None
+        path.exists()
+    except RuntimeError:
+        shown = errors.shown_path(text)
+        raise argparse.ArgumentTypeError(f"{shown!r} is a symbolic link loop") from None
+    except OSError as e:
+        why = (
+            "is a symbolic link loop"
+            if e.errno == errno.ELOOP
+            else f"cannot be used ({e.strerror})"
+        )
+        raise argparse.ArgumentTypeError(f"{errors.shown_path(text)!r} {why}") from None
     return path

@@ -13,9 +13,18 @@ class UsageError(ValueError):
     """A bad input the caller can correct (its message says which and how)."""
 
 
+def shown_path(path, limit: int = 120) -> str:
+    """`path` as text, its middle cut out if longer than `limit` characters."""
+    text = str(path)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit // 2]}...{text[-(limit // 2 - 3) :]} ({len(text):,} characters)"
+
+
 def message(error) -> str:
-    """One line for an exception or a message: OS errors name their file."""
+    """One line for an exception or a message: OS errors name their file (shortened)."""
     if isinstance(error, OSError) and error.strerror:
-        where = " -> ".join(str(f) for f in (error.filename, error.filename2) if f is not None)
+        files = (error.filename, error.filename2)
+        where = " -> ".join(shown_path(f) for f in files if f is not None)
         error = f"{where}: {error.strerror}" if where else error.strerror
     return " ".join(str(error).split()) or type(error).__name__

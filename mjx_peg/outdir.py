@@ -22,8 +22,10 @@ Everything else is one UsageError line: a file, a non-empty directory without th
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
+import stat
 import tempfile
 import time
 from collections.abc import Callable, Mapping
@@ -31,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import inputs, signals
 from mjx_peg.errors import UsageError, message
 
 _SHOWN = 60  # characters of a differing value quoted in a message
@@ -94,33 +97,115 @@ def check_out(out, flag: str = "--out") -> None:
             return
 
 
-@contextlib.contextmanager
-def exclusive(out, flag: str = "--out"):
-    """Hold output directory `out` for this process while the block runs: a second process
-    asking for it gets one UsageError line. The lock (`.NAME.lock` beside `out`, so that --force
-    can move `out` aside) is an flock: the system drops it when its holder exits, crashed or
-    killed, so it never stays stuck."""
+def lock_path(out) -> Path:
+    """The lock of output directory `out`: `.NAME.lock` beside it (so that --force can move
+    `out` itself aside while it is held)."""
+    out = Path(out)
+    return out.parent / f".{out.name}.lock"
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """Create `folder` and its missing parents; the ones this call made, outermost first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    made = []
+    for path in reversed(missing):
+        try:
+            path.mkdir()
+            made.append(path)
+        except FileExistsError:  # made meanwhile by another process
+            pass
+    return made
+
+
+def _remove_if_empty(folders) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # not empty (or gone): kept
+            pass
+
+
+def _take_lock(lock: Path, where: str, flag: str) -> int:
+    """An open descriptor of `lock` holding its flock; UsageError if another process holds it
+    or if `lock` is not a lock file this command would make (a symbolic link, a file with other
+    hard links or of another user, a folder, a FIFO): nothing is written through those."""
     import fcntl
 
-    out = Path(out)
-    check_out(out, flag)  # a file where a folder must be: one line naming the flag, not mkdir's
-    lock = out.parent / f".{out.name}.lock"
-    lock.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    not_ours = f"{where}: its lock {lock} is not a lock file of this program"
+    while True:
+        try:
+            fd = os.open(lock, flags, 0o644)
+        except OSError as e:
+            if e.errno in (errno.ELOOP, errno.EISDIR, errno.ENXIO, errno.EMLINK):
+                raise UsageError(f"{not_ours} ({e.strerror}); remove it") from None
+            raise OSError(e.errno, e.strerror, str(lock)) from None
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1 or info.st_uid != os.geteuid():
+            os.close(fd)
+            why = (
+                "not a regular file"
+                if not stat.S_ISREG(info.st_mode)
+                else ("it has other hard links" if info.st_nlink != 1 else "another user's")
+            )
+            raise UsageError(f"{not_ours} ({why}); remove it")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
             raise UsageError(
-                f"{flag} {out} is in use by another process (pid {holder}): wait for it to end "
+                f"{where} is in use by another process (pid {holder[:12]}): wait for it to end "
                 f"or give another {flag}"
             ) from None
+        try:  # the path may have been removed (or replaced) by a holder that just ended
+            now = os.stat(lock, follow_symlinks=False)
+        except FileNotFoundError:
+            now = None
+        if now is not None and (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino):
+            return fd
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def exclusive(out, flag: str = "--out"):
+    """Hold output directory `out` for this process while the block runs: a second process
+    asking for it gets one UsageError line naming `flag` and the process that holds it.
+
+    The lock (`lock_path`) is an flock: the system drops it when its holder ends, crashed or
+    killed, so it never stays stuck; it is opened without following a symbolic link, and only
+    a regular file of one link that this user owns is ever written (its holder's pid). It is
+    removed when the block ends. If the block fails, the folders made for the lock and an `out`
+    it made are removed again if empty: a refused input leaves nothing behind. From the moment
+    it is held the command is working (`signals.working`): a Ctrl-C unwinds, keeping what was
+    written."""
+    out = Path(out)
+    check_out(out, flag)  # a file where a folder must be: one line naming the flag
+    where = f"{flag} {out}"
+    lock = lock_path(out)
+    made = _make_folders(lock.parent)
+    made_out = not out.exists()
+    fd, failed = None, True
+    try:
+        fd = _take_lock(lock, where, flag)
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        signals.working()
         yield out
+        failed = False
     finally:
-        os.close(fd)
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                mine, now = os.fstat(fd), os.stat(lock, follow_symlinks=False)
+                if (mine.st_dev, mine.st_ino) == (now.st_dev, now.st_ino):
+                    lock.unlink()
+            os.close(fd)
+        if failed:
+            _remove_if_empty([out] if made_out else [])
+            _remove_if_empty(reversed(made))
 
 
 def partial_path(path) -> Path:
@@ -141,10 +226,27 @@ def write_atomic(path, data: bytes | str | Callable[[Path], object]) -> Path:
             with open(tmp, "wb") as f:
                 f.write(data.encode() if isinstance(data, str) else data)
         os.replace(tmp, path)
+    except OSError as e:  # a full disk: the error names the file, not its partial copy
+        tmp.unlink(missing_ok=True)
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     return path
+
+
+def write_all_atomic(files) -> list[Path]:
+    """Write each (path, data) of `files` with `write_atomic`, all or none: if one fails, the
+    ones written before it are removed again (a rerun is then not refused for them)."""
+    written: list[Path] = []
+    try:
+        for path, data in files:
+            written.append(write_atomic(path, data))
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
+    return written
 
 
 def refuse_or_move(
@@ -226,9 +328,10 @@ class OutDir:
 
     def recorded(self) -> dict:
         """The config recorded in the config file; UsageError if the file is not one."""
+        doc = inputs.read_json(self.config_path, f"{self._a_noun} config")
         try:
-            return _plain(self.read(json.loads(self.config_path.read_text())))
-        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            return _plain(self.read(doc))
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as e:
             why = f"no {e}" if isinstance(e, KeyError) else message(e)
             raise UsageError(
                 f"{self.config_path} is not {self._a_noun} config{f' ({why})' if why else ''}; "

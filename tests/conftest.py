@@ -25,3 +25,29 @@ def x64():
     jax.config.update("jax_enable_x64", True)
     yield
     jax.config.update("jax_enable_x64", previous)
+
+
+@pytest.fixture
+def hold_out():
+    """hold_out(out): a process that holds output directory `out` (`outdir.exclusive`) until it
+    is killed (by the test, or when the test ends); returns the process once it holds it."""
+    import subprocess
+    import sys
+
+    holders = []
+
+    def start(out):
+        holder = subprocess.Popen(
+            [sys.executable, "-c", "import sys, time; from mjx_peg import outdir\n"
+             "with outdir.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
+             str(out)],
+            stdout=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        holders.append(holder)
+        assert holder.stdout.readline().strip() == "held"
+        return holder
+
+    yield start
+    for holder in holders:
+        holder.kill()
+        holder.wait()

@@ -130,9 +130,11 @@ def test_train_force_moves_an_earlier_run_aside(tmp_path):
 
 
 def test_robot_checks_out_before_any_trial(tmp_path, capsys, monkeypatch):
+    from mjx_peg.robot import sim_arm
+
     ran = []
-    real = robot_cli.SimArm
-    monkeypatch.setattr(robot_cli, "SimArm", lambda *a, **k: ran.append(1) or real(*a, **k))
+    real = sim_arm.SimArm
+    monkeypatch.setattr(sim_arm, "SimArm", lambda *a, **k: ran.append(1) or real(*a, **k))
     argv = ["--trials", "2", "--time-limit", "0.05", "--no-progress"]
     assert robot_cli.main([*argv, "--out", str(_unwritable_dir(tmp_path))]) == 2
     _one_line(capsys, robot_cli.PROG)
@@ -161,7 +163,9 @@ def test_robot_never_overwrites_runs_csv_without_force(tmp_path, capsys):
 
 
 def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch):
-    real, calls = robot_cli.run_skill, []
+    from mjx_peg.robot import runtime
+
+    real, calls = runtime.run_skill, []
 
     def crash_on_third(*args, **kwargs):
         calls.append(1)
@@ -169,7 +173,7 @@ def test_robot_keeps_every_finished_trial_when_it_crashes(tmp_path, monkeypatch)
             raise RuntimeError("the arm's computer crashed")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(robot_cli, "run_skill", crash_on_third)
+    monkeypatch.setattr(runtime, "run_skill", crash_on_third)
     argv = ["--trials", "5", "--time-limit", "0.05", "--no-progress", "--out", str(tmp_path)]
     with pytest.raises(RuntimeError, match="crashed"):
         robot_cli.main(argv)
@@ -501,17 +505,13 @@ def test_a_command_period_longer_than_the_trial_is_one_line(hz, tmp_path, capsys
     assert not out.exists()
 
 
-def test_a_second_evaluation_of_the_same_out_is_refused_while_the_first_holds_it(tmp_path, capsys):
+def test_a_second_evaluation_of_the_same_out_is_refused_while_the_first_holds_it(
+    tmp_path, capsys, hold_out
+):
     """The lock is held while its process lives, and gone with it when it is killed."""
     out = tmp_path / "eval"
-    holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from mjx_peg import outdir\n"
-         "with outdir.exclusive(sys.argv[1]):\n    print('held', flush=True); time.sleep(600)",
-         str(out)],
-        stdout=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    holder = hold_out(out)
     try:
-        assert holder.stdout.readline().strip() == "held"
         argv = [
             "--policy",
             "baseline",

@@ -273,3 +273,13 @@ def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypat
     assert load_policy(copy).skill == NamedSkill("spiral", SKILLS["spiral"])
     for name in ("manifest.json", "config.json", "policy.npz"):
         assert (copy / name).read_bytes() == (shipped / name).read_bytes(), name
+
+
+def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_path):
+    names = run_script("experiments/catalogue.py", "--list").splitlines()
+    assert len(names) >= 500 and len(set(names)) == len(names)
+    groups = {name.split("/")[0] for name in names}
+    assert {"edge", "damaged-policy", "kill", "concurrency", "ur5e", "ray", "env", "api"} <= groups
+    out = run_script("experiments/catalogue.py", "--out", tmp_path, "--only", "api/skill_config")
+    assert "| the Python API | 2 | 2 |" in out  # both one line: a UsageError each
+    assert (tmp_path / "clone" / "mjx_peg").is_dir() and (tmp_path / "table.md").is_file()

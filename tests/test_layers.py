@@ -12,8 +12,9 @@ import pytest
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "mjx_peg"
 
 # Rank of each layer: a module may import its own layer and lower ranks only. Rank 0 are the
-# helpers every layer shares; `cli` is the shared command-line boundary and `outdir` where and how
-# every command writes (rank 1 both, neither importing the other).
+# helpers every layer shares; `inputs` reads the files a command is given; `cli` is the shared
+# command-line boundary and `outdir` where and how every command writes (rank 2 both, neither
+# importing the other).
 # The last rank's folders are peers that each consume the layers above; they may not import each
 # other, except through the optional imports listed in PEER_IMPORTS.
 RANKS = {
@@ -21,16 +22,18 @@ RANKS = {
     "file_versions": 0,  # reading files of earlier versions
     "cores": 0,
     "array_api": 0,  # the array namespace
-    "cli": 1,
-    "outdir": 1,  # output directories: atomic writes, move aside, the --out lock
-    "world": 2,
-    "skill": 3,
-    "engines": 4,
-    "policy": 5,
-    "learn": 6,
-    "evaluation": 7,
-    "robot": 7,
-    "vision": 7,
+    "signals": 0,  # how a program stops on SIGINT / SIGTERM
+    "inputs": 1,  # reading a file someone gave us: checked before it is used
+    "cli": 2,
+    "outdir": 2,  # output directories: atomic writes, move aside, the --out lock
+    "world": 3,
+    "skill": 4,
+    "engines": 5,
+    "policy": 6,
+    "learn": 7,
+    "evaluation": 8,
+    "robot": 8,
+    "vision": 8,
 }
 PEER_IMPORTS: set[tuple[str, str]] = {
     ("vision", "robot"),  # the localizer returns robot.runtime.HoleEstimate

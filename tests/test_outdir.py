@@ -155,3 +155,133 @@ def test_earlier_results_are_refused_or_moved_aside_never_deleted(tmp_path):
     picture.write_bytes(b"again")
     again = outdir.move_aside(picture)  # the same second: a numbered name beside the first
     assert again != moved and again.read_bytes() == b"again"
+
+
+# -- one writer per output directory (outdir.exclusive) -----------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["symlink", "hardlink", "directory", "fifo"])
+def test_a_lock_path_that_is_not_a_lock_file_is_refused_and_nothing_is_written_through_it(
+    kind, tmp_path
+):
+    """`ln -s victim.txt .out.lock` (or a hard link, a folder, a FIFO): one line naming --out,
+    the victim untouched, nothing created."""
+    import os
+
+    from mjx_peg import outdir
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    lock = outdir.lock_path(tmp_path / "out")
+    if kind == "symlink":
+        lock.symlink_to(victim)
+    elif kind == "hardlink":
+        os.link(victim, lock)
+    elif kind == "directory":
+        lock.mkdir()
+    else:
+        os.mkfifo(lock)
+    with pytest.raises(UsageError, match=r"^--out .*/out: its lock .* remove it$"):
+        with outdir.exclusive(tmp_path / "out"):
+            pass
+    assert victim.read_text() == "precious\n" and not (tmp_path / "out").exists()
+
+
+def test_the_lock_goes_with_its_holder_and_a_refused_input_leaves_no_folder(tmp_path):
+    from mjx_peg import outdir
+
+    out = tmp_path / "a" / "b" / "out"
+    with outdir.exclusive(out):
+        assert outdir.lock_path(out).read_text() == f"{__import__('os').getpid()}\n"
+        out.mkdir()
+        (out / "result.txt").write_text("x")
+    assert not outdir.lock_path(out).exists() and (out / "result.txt").exists()
+    other = tmp_path / "c" / "d" / "out"
+    with pytest.raises(UsageError, match="bad input"):
+        with outdir.exclusive(other):
+            other.mkdir()  # made, then the input is refused: nothing is left behind
+            raise UsageError("bad input")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]
+
+
+def test_every_command_that_writes_an_output_directory_refuses_a_second_writer(
+    tmp_path, capsys, hold_out
+):
+    """While another process holds --out: one line naming --out and the holder's pid, before
+    anything is written (the holder's files untouched); once it is gone, the command runs."""
+    from mjx_peg.evaluation import demo_cli
+    from mjx_peg.robot import cli as robot_cli
+    from mjx_peg.vision import cli as vision_cli
+    from mjx_peg.world import scene_cli
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "theirs.txt").write_text("the first writer's\n")
+    holder = hold_out(out)
+    commands = {
+        robot_cli: ["--trials", "1", "--time-limit", "0.05", "--no-progress"],
+        demo_cli: ["--frames", "0", "--time-limit", "0.05"],
+        scene_cli: ["--shape", "circle", "--size", "50", "--width", "16", "--height", "16"],
+        vision_cli: ["render", "--count", "1", "--width", "64", "--height", "64"],
+    }
+    try:
+        for cli_module, argv in commands.items():
+            assert cli_module.main([*argv, "--out", str(out)]) == 2
+            err = capsys.readouterr().err.strip()
+            assert len(err.splitlines()) == 1, err
+            assert f"--out {out} is in use by another process (pid {holder.pid})" in err
+        assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
+    finally:
+        holder.kill()
+        holder.wait()
+    assert robot_cli.main([*commands[robot_cli], "--out", str(out)]) == 0
+
+
+@pytest.mark.slow
+def test_two_trainings_on_one_out_a_few_seconds_apart_the_second_is_refused(tmp_path):
+    """The same train.py twice, 2 s apart: the second refused in one line, the first's run
+    whole (every trial once in trials.csv, every iteration once in metrics.csv)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    root = Path(__file__).resolve().parents[1]
+    argv = [sys.executable, "train.py", "--num-envs", "8", "--trials", "32", "--time-limit",
+            "0.5", "--checkpoint-every", "0", "--seed", "3", "--processes", "0", "--no-progress",
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(root), "JAX_PLATFORMS": "cpu"}
+    first = subprocess.Popen(argv, cwd=root, env=env, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.monotonic() + 300
+    while not (tmp_path / "run" / "config.json").exists():
+        assert first.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    time.sleep(2)
+    second = subprocess.run([*argv[:-2], "--seed", "4", *argv[-2:]], cwd=root, env=env,
+                            capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert first.wait(timeout=600) == 0, first.stderr.read()[-2000:]
+    lines = second.stderr.strip().splitlines()
+    assert second.returncode == 2 and len(lines) == 1, second.stderr
+    assert f"--out {tmp_path / 'run'} is in use by another process (pid {first.pid})" in lines[0]
+    trials = (tmp_path / "run" / "trials.csv").read_text().splitlines()[1:]
+    assert [int(row.split(",")[0]) for row in trials] == list(range(32))
+    metrics = (tmp_path / "run" / "metrics.csv").read_text().splitlines()[1:]
+    assert [int(row.split(",")[0]) for row in metrics] == list(range(1, 5))
+    assert json.loads((tmp_path / "run" / "config.json").read_text())["seed"] == 3
+
+
+def test_files_written_together_are_all_there_or_none(tmp_path):
+    """A full disk at the second file (the scene's PNG after its MJCF, the demo's frames after
+    its plot): the first is removed again, so the same command reruns without --force."""
+    from mjx_peg import outdir
+
+    def full(path):
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError) as caught:
+        outdir.write_all_atomic([(tmp_path / "a.xml", "<a/>"), (tmp_path / "a.png", full)])
+    assert caught.value.filename == str(tmp_path / "a.png")
+    assert list(tmp_path.iterdir()) == []
+    written = outdir.write_all_atomic([(tmp_path / "a.xml", "<a/>"), (tmp_path / "b", b"x")])
+    assert [p.read_bytes() for p in written] == [b"<a/>", b"x"]

@@ -26,6 +26,7 @@ import os
 import queue
 import signal
 import sys
+import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -88,18 +89,25 @@ def shutdown(kill: bool = False) -> None:
     if kill:
         for process in list(getattr(executor, "_processes", {}).values()):
             process.kill()
-    executor.shutdown(wait=not kill, cancel_futures=True)
+    # Waited for even after a kill (the pool sees its workers gone at once): its queues and
+    # their semaphores are then released, not reported as leaked at exit.
+    executor.shutdown(wait=True, cancel_futures=True)
 
 
 atexit.register(shutdown, True)
 
 
 @contextlib.contextmanager
-def _without_main_script():
+def _while_workers_start():
     """While workers start: they import this package, never the caller's script (`spawn` would
-    run a script again in every worker, and fail on one without a `__main__` guard)."""
+    run a script again in every worker, and fail on one without a `__main__` guard), and they
+    start with SIGINT blocked (a Ctrl-C sent to the whole process group while a worker is still
+    importing would print its traceback; the caller stops the workers)."""
     main = sys.modules.get("__main__")
     saved = {k: getattr(main, k) for k in ("__file__", "__spec__") if hasattr(main, k)}
+    blocked = threading.current_thread() is threading.main_thread()
+    if blocked:
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         if "__file__" in saved:
             del main.__file__
@@ -109,6 +117,8 @@ def _without_main_script():
     finally:
         for key, value in saved.items():
             setattr(main, key, value)
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def take_params(params: ControllerParams, rows: np.ndarray) -> ControllerParams:
@@ -147,9 +157,9 @@ def run_in_processes(
     1); `options`: the in-process engine's slots_per_thread, batch_threads, persistent."""
     n = len(specs)
     shards = interleaved(n, processes)
-    executor, progress_queue = _executor(len(shards))
     try:
-        with _without_main_script():  # the executor starts its workers on submit
+        with _while_workers_start():  # the executor starts its workers on submit
+            executor, progress_queue = _executor(len(shards))
             futures = [
                 executor.submit(
                     _run_shard,

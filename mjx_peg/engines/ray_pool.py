@@ -101,11 +101,11 @@ def _reachable(address: str, timeout_s: float = 5.0) -> None:
     import socket
 
     host, _, port = address.rpartition(":")
-    if not host or not port.isdigit():
-        raise ClusterError(f"a Ray address is auto, local or HOST:PORT, got {address!r}")
+    if not host or not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        raise ClusterError(f"a Ray address is auto, local or HOST:PORT, got {address[:60]!r}")
     try:
-        socket.create_connection((host, int(port)), timeout=timeout_s).close()
-    except OSError as error:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except (OSError, UnicodeError) as error:  # UnicodeError: not a host name
         raise ClusterError(f"cannot reach the Ray cluster at {address}: {error}") from None
 
 

@@ -25,6 +25,9 @@ PASS_VARIABLE = "MJX_PEG_CONTROL_PASS"
 PASSES = ("compiled", "numpy")
 
 
+LANE_STOP_S = 10.0  # a stopped lane ends within one control period; this is a bound
+
+
 def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, source,
               observer=None, profile=None, compiled: bool = False) -> None:  # fmt: skip
     """Run `threads` lanes of `slots` rows on the trials `source` hands out, in this process;
@@ -51,6 +54,7 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
             errors.append(exc)
             source.stop()
 
+    pool: list[threading.Thread] = []
     try:
         if threads == 1:
             work(lanes[0], report=True)
@@ -64,6 +68,8 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
                     source.flush()
     except BaseException:  # KeyboardInterrupt: stop the lanes at their next period
         source.stop()
+        for t in pool:  # and wait for them: a lane still in MuJoCo at exit would crash it
+            t.join(timeout=LANE_STOP_S)
         raise
     source.flush()
     sims.keep_sims(set(count))

@@ -5,14 +5,9 @@ mjx-peg-baseline --linear-mm 3 --angular-deg 4 --trials 100   # per shape, 60 s 
 
 from __future__ import annotations
 
-from mjx_peg import cli
-from mjx_peg.engines import ENGINES, run_trials
-from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.skill.search import SKILL_DESCRIPTIONS, skill_config
+from mjx_peg import cli, signals
+from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
-from mjx_peg.world.parts import fit_text
-from mjx_peg.world.task import HOLE_SCALE_HELP, TaskConfig, parse_hole_scale, sample_trials
 
 PROG = "mjx-peg-baseline"
 
@@ -20,6 +15,9 @@ PROG = "mjx-peg-baseline"
 @cli.entry(PROG)
 def main(argv=None) -> int:
     """Success and time of the hand-tuned baseline per shape at given errors."""
+    from mjx_peg.engines import ENGINES
+    from mjx_peg.world.task import HOLE_SCALE_HELP, parse_hole_scale
+
     p = cli.Parser(prog=PROG, description=main.__doc__)
     p.add_argument(
         "--shapes",
@@ -45,8 +43,17 @@ def main(argv=None) -> int:
     for shape in shapes:
         if shape not in constants.SHAPES:
             p.error(f"unknown shape {shape!r}: choose from {', '.join(constants.SHAPES)}")
-    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(args.skill))
+    if len(set(shapes)) != len(shapes):
+        p.error(f"--shapes names a shape twice: {args.shapes}")
     hole_scale = parse_hole_scale(args.hole_scale)
+    from mjx_peg.engines import run_trials
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.skill.baseline import baseline_params
+    from mjx_peg.skill.search import skill_config
+    from mjx_peg.world.parts import fit_text
+    from mjx_peg.world.task import TaskConfig, sample_trials
+
+    config = TrialConfig(time_limit_s=args.time_limit, search=skill_config(args.skill))
     tasks = [
         TaskConfig.from_mm_deg(
             (shape,),
@@ -61,6 +68,7 @@ def main(argv=None) -> int:
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(None)  # no output directory: MuJoCo's warnings go nowhere
+    signals.working()  # the engine starts worker processes: a signal stops them
     for shape, task in zip(shapes, tasks, strict=True):
         specs = sample_trials(task, args.seed, args.trials)
         result = run_trials(specs, baseline_params(), engine=args.engine, config=config)

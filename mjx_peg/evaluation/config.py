@@ -78,6 +78,14 @@ class EvalConfig:
     hole_scale: float | str | None = None
 
     def __post_init__(self):
+        try:
+            self._validate()
+        except (TypeError, ValueError) as e:  # a field of another type (a config.json's)
+            if isinstance(e, UsageError):
+                raise
+            raise UsageError(f"EvalConfig: a field has the wrong type ({e})") from None
+
+    def _validate(self):
         if self.grid not in GRIDS:
             raise UsageError(f"unknown grid {self.grid!r}: choose from {', '.join(GRIDS)}")
         for name in ("linear_mm", "angular_deg"):

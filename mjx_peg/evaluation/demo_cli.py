@@ -18,23 +18,10 @@ import argparse
 import pathlib
 import sys
 
-import numpy as np
-
 from mjx_peg import cli, outdir
-from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS, frame_strip, plot_trial, run_demo
-from mjx_peg.policy.export import policy_skill
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.world import constants
-from mjx_peg.world.parts import fit_text
-from mjx_peg.world.task import (
-    HOLE_SCALE_HELP,
-    TaskConfig,
-    TrialSpec,
-    parse_hole_scale,
-    sample_trials,
-)
 
 PROG = "mjx-peg-demo"
 _DEFAULTS = {
@@ -50,6 +37,9 @@ _DEFAULTS = {
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS
+    from mjx_peg.world.task import HOLE_SCALE_HELP
+
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
     p.add_argument("--shape", choices=constants.SHAPES, help=f"default {d['shape']}")
@@ -115,8 +105,13 @@ def _controller(policy: str):
     return load_controller(policy)
 
 
-def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
+def trial_from_args(args):
     """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.policy.export import policy_skill
+    from mjx_peg.world.parts import fit_text
+    from mjx_peg.world.task import TaskConfig, parse_hole_scale, sample_trials
+
     for dest, value in _DEFAULTS.items():
         if getattr(args, dest) is None:
             setattr(args, dest, value)
@@ -133,9 +128,11 @@ def trial_from_args(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str]:
     return specs, controller(specs), TrialConfig(args.time_limit, search=search), label
 
 
-def trial_from_eval(args) -> tuple[TrialSpec, np.ndarray, TrialConfig, str, dict]:
+def trial_from_eval(args):
     """Like `trial_from_args` for trial --trial of range --range of the evaluation --replay,
     plus what the evaluation recorded for that trial."""
+    import numpy as np
+
     from mjx_peg.evaluation import config as eval_config
     from mjx_peg.evaluation import eval_dir
 
@@ -197,6 +194,8 @@ def _outcome(success, time_s) -> str:
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from mjx_peg.evaluation.demo import OUTPUTS, frame_strip, plot_trial, run_demo
+
     if args.replay is None:
         if args.range is not None or args.trial != "0":
             raise UsageError("--range and --trial need --replay EVAL_DIR")
@@ -207,32 +206,32 @@ def main(argv=None) -> int:
     # The output location, before any work: never an input, nothing replaced without --force.
     policy = None if args.replay is not None else args.policy
     outdir.check_apart(args.out, {"--policy": policy, "--replay": args.replay})
-    outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
-    if args.out.is_dir() and not args.force:
-        outdir.refuse_or_move(outputs, False)
-    if args.frames:
-        from mjx_peg.world import render
+    with outdir.exclusive(args.out):
+        outputs = [args.out / name for name in OUTPUTS[: 2 if args.frames else 1]]
+        if args.out.is_dir() and not args.force:
+            outdir.refuse_or_move(outputs, False)
+        if args.frames:
+            from mjx_peg.world import render
 
-        render.check_backend()  # or one line: before the trial runs
-    outdir.prepare_dir(args.out)
-    outdir.refuse_or_move(outputs, args.force, lambda text: cli.note(PROG, text))
-    if args.frames:
-        from mjx_peg.world import gl
+            render.check_backend()  # or one line: before the trial runs
+        outdir.prepare_dir(args.out)
+        outdir.refuse_or_move(outputs, args.force, lambda text: cli.note(PROG, text))
+        if args.frames:
+            from mjx_peg.world import gl
 
-        if gl.fallback_note():
-            cli.note(PROG, f"warning: {gl.fallback_note()}")
-    from mjx_peg.world import mujoco_log
+            if gl.fallback_note():
+                cli.note(PROG, f"warning: {gl.fallback_note()}")
+        from mjx_peg.world import mujoco_log
 
-    mujoco_log.send_to(args.out)
-    run = run_demo(specs, vector, config, args.frames)
-    outdir.write_atomic(outputs[0], lambda path: plot_trial(run, path))
-    wrote = [outputs[0].name]
-    strip = frame_strip(run, args.frames) if args.frames else None
-    if strip is not None:
-        from mjx_peg.world.render import save_png
+        mujoco_log.send_to(args.out)
+        run = run_demo(specs, vector, config, args.frames)
+        files = [(outputs[0], lambda path: plot_trial(run, path))]
+        strip = frame_strip(run, args.frames) if args.frames else None
+        if strip is not None:
+            from mjx_peg.world.render import save_png
 
-        outdir.write_atomic(outputs[1], lambda path: save_png(path, strip))
-        wrote.append(outputs[1].name)
+            files.append((outputs[1], lambda path: save_png(path, strip)))
+        wrote = [p.name for p in outdir.write_all_atomic(files)]  # both or neither
     print(f"{label}: {run['result'].summary()}; wrote {' and '.join(wrote)} in {args.out}")
     if recorded is None:
         return 0

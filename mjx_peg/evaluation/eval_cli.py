@@ -15,34 +15,16 @@ import sys
 import time
 from collections.abc import Sequence
 
-from mjx_peg import cli, outdir
-from mjx_peg.engines import ENGINES, engine_runner, resolve_engine
+from mjx_peg import cli, outdir, signals
 from mjx_peg.errors import UsageError
-from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS, MAX_ERROR, EvalConfig, grid_axes
-from mjx_peg.evaluation.eval_dir import (
-    GRID_FILE,
-    PAPER_PNG,
-    SUCCESS_PNG,
-    SUMMARY_FILE,
-    TIME_PNG,
-    load_evaluation_grid,
-    prepare_out_dir,
-    range_path,
-)
-from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS, paper_condition_for
-from mjx_peg.evaluation.report import write_outputs
-from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS, load_controller, run_evaluation
-from mjx_peg.policy.export import choose_skill
-from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import SKILL_DESCRIPTIONS
-from mjx_peg.world.constants import GRASP_MODELS
-from mjx_peg.world.task import HOLE_SCALE_HELP, SHAPES, parse_hole_scale
 
 PROG = "eval.py"
 
 
 def check_engine_options(engine: str, options: dict) -> None:
     """UsageError unless the engine's runner (`engines.engine_runner`) takes every option."""
+    from mjx_peg.engines import engine_runner
+
     params = inspect.signature(engine_runner(engine)).parameters
     takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
     for key in options:
@@ -51,6 +33,14 @@ def check_engine_options(engine: str, options: dict) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.engines import ENGINES
+    from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS
+    from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS
+    from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
+    from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+    from mjx_peg.world.constants import GRASP_MODELS, SHAPES
+    from mjx_peg.world.task import HOLE_SCALE_HELP
+
     p = cli.Parser(
         prog=PROG,
         description="Evaluate a policy over a grid of error ranges (paper section 6): grid.csv, "
@@ -158,8 +148,14 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
+def config_from_args(args: argparse.Namespace, policy_label: str):
     """Resolve the CLI's options into an EvalConfig (ValueError on bad input)."""
+    from mjx_peg.engines import resolve_engine
+    from mjx_peg.evaluation.config import MAX_ERROR, EvalConfig, grid_axes
+    from mjx_peg.policy.export import choose_skill
+    from mjx_peg.world.constants import SHAPES
+    from mjx_peg.world.task import parse_hole_scale
+
     linear = None if args.linear_mm is None else cli.parse_ranges(args.linear_mm, "--linear-mm")
     angular = (
         None if args.angular_deg is None else cli.parse_ranges(args.angular_deg, "--angular-deg")
@@ -215,6 +211,21 @@ def config_from_args(args: argparse.Namespace, policy_label: str) -> EvalConfig:
 def main(argv: Sequence[str] | None = None) -> int:
     """`python eval.py`: run (or resume) an evaluation grid and write its outputs."""
     args = build_parser().parse_args(argv)
+    from mjx_peg.evaluation.eval_dir import (
+        GRID_FILE,
+        PAPER_PNG,
+        SUCCESS_PNG,
+        SUMMARY_FILE,
+        TIME_PNG,
+        load_evaluation_grid,
+        prepare_out_dir,
+        range_path,
+    )
+    from mjx_peg.evaluation.paper_tables import paper_condition_for
+    from mjx_peg.evaluation.report import write_outputs
+    from mjx_peg.evaluation.runner import load_controller, run_evaluation
+    from mjx_peg.policy.shipped import resolve_policy
+
     out = args.out
     policy = resolve_policy(args.policy)
     policy_label, controller = load_controller(policy)
@@ -238,11 +249,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif paper_name == "none":
         paper_name = None
     outdir.check_apart(out, {"--policy": policy, "--compare": args.compare})
-    with outdir.exclusive(out):
-        if args.ray is not None:  # join the cluster before anything is written
-            from mjx_peg.engines import ray_pool
+    outdir.check_out(out)
+    if args.ray is not None:  # join the cluster before anything is written
+        from mjx_peg.engines import ray_pool
 
-            ray_pool.connect(args.ray)
+        signals.working()  # Ray starts processes: a signal stops them
+        ray_pool.connect(args.ray)
+    with outdir.exclusive(out):  # from here a Ctrl-C keeps every finished range
         prepare_out_dir(
             out,
             config,

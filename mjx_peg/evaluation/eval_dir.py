@@ -14,31 +14,32 @@ writes the same grid.csv as an uninterrupted one. Files of earlier versions are 
 from __future__ import annotations
 
 import csv
-import json
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import errors, file_versions, outdir
+from mjx_peg import errors, file_versions, inputs, outdir
 from mjx_peg.engines.trial import TrialResult
 from mjx_peg.errors import UsageError
 from mjx_peg.evaluation.config import CONTACT_MODEL, EvalConfig
 from mjx_peg.evaluation.grid_table import GridTable
 from mjx_peg.outdir import OutDir, write_npz
 from mjx_peg.policy.shipped import SHIPPED_DIR, shipped_names
+from mjx_peg.world.constants import SHAPES
 
 SCHEMA = "mjx-peg-eval"
 SCHEMA_VERSION = 1
 CONFIG_FILE, GRID_FILE, SUMMARY_FILE = "config.json", "grid.csv", "summary.md"
 SUCCESS_PNG, TIME_PNG, RANGES_DIR = "success_heatmap.png", "time_heatmap.png", "ranges"
 PAPER_PNG = "paper_comparison.png"  # when the paper has numbers for the condition
-# The per-trial results of a range (TrialResult's fields), each (trials,).
-RESULT_FIELDS = (
-    "success", "time_s", "shape_id", "unstable", "steps", "peak_force", "reward", "settled",
-    "chatter", "protective_stop",
-)  # fmt: skip
+# The per-trial results of a range (TrialResult's fields), each (trials,), and their dtype
+# kinds: booleans, counts, floats.
+RESULT_KINDS = {
+    "success": "b", "time_s": "f", "shape_id": "iu", "unstable": "b", "steps": "iu",
+    "peak_force": "f", "reward": "f", "settled": "b", "chatter": "f", "protective_stop": "b",
+}  # fmt: skip
+RESULT_FIELDS = tuple(RESULT_KINDS)
 CONTACT_FIELDS = ("chatter", "protective_stop")  # not recorded before contact_model 2
 TIP_FIELD = "final_tip_pos"  # (trials, 3); ranges saved before the failure taxonomy lack it
 
@@ -83,12 +84,16 @@ def read_eval_dir(eval_dir) -> tuple[EvalConfig, str | None]:
     path = Path(eval_dir) / CONFIG_FILE
     if not path.is_file():
         raise UsageError(f"{eval_dir} holds no {CONFIG_FILE}: not an evaluation directory")
+    doc = inputs.read_json(path, "an mjx-peg evaluation config")
     try:
-        doc = json.loads(path.read_text())
         config = EvalConfig(**_recorded(doc))
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        raise UsageError(f"{path} is not an mjx-peg evaluation config") from None
-    return config, doc.get("policy_dir")
+        policy_dir = doc.get("policy_dir")
+        if policy_dir is not None and not isinstance(policy_dir, str):
+            raise TypeError("policy_dir is not a path")
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        why = f"no {e}" if isinstance(e, KeyError) else errors.message(e)[:100]
+        raise UsageError(f"{path} is not an mjx-peg evaluation config ({why})") from None
+    return config, policy_dir
 
 
 def range_path(out: Path, index: int) -> Path:
@@ -99,24 +104,30 @@ def range_path(out: Path, index: int) -> Path:
 def load_range(out: Path, config: EvalConfig, index: int) -> dict[str, np.ndarray] | None:
     """Per-trial results of a finished range, or None if it has not finished."""
     path = range_path(out, index)
-    if not path.is_file():
+    if not (path.exists() or path.is_symlink()):
         return None
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
+    n = config.trials
+    members = {
+        k: inputs.Member(kind, (n,), finite=k == "time_s") for k, kind in RESULT_KINDS.items()
+    }
+    members[TIP_FIELD] = inputs.Member("f", (n, 3), finite=False)
+    try:  # each array checked by its header before it is read, only these read
+        arrays = inputs.read_npz(path, members, optional=(*CONTACT_FIELDS, "settled", TIP_FIELD))
         arrays = file_versions.range_results(arrays)
         # Saved before credible contact (contact_model 1): no contact metrics.
         optional = CONTACT_FIELDS if config.contact_model < CONTACT_MODEL else ()
         missing = [k for k in RESULT_FIELDS if k not in arrays and k not in optional]
         if missing:
             raise UsageError(f"no {', '.join(missing)}")
-        wrong = [k for k in RESULT_FIELDS if k in arrays and arrays[k].shape != (config.trials,)]
-        if wrong:
-            raise UsageError(f"{wrong[0]} does not hold {config.trials} trials")
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        if np.any(arrays["time_s"] < 0) or np.any(arrays["steps"] < 0):
+            raise UsageError("a time or a step count is negative")
+        if not np.all(np.isin(arrays["shape_id"], [SHAPES.index(s) for s in config.shapes])):
+            raise UsageError(f"shape_id names a shape other than {', '.join(config.shapes)}")
+    except (OSError, ValueError) as e:
+        text = errors.message(e).removeprefix(f"{path}: ")
         raise UsageError(
-            f"{path} is corrupt or truncated ({type(e).__name__}: {errors.message(e)}); delete it "
-            "and rerun the same command to run that range again"
+            f"{path} is corrupt or truncated ({text}); delete it and rerun the same command to "
+            "run that range again"
         ) from None
     return arrays
 

@@ -11,13 +11,17 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
+from pathlib import Path
 
 import numpy as np
 
-from mjx_peg.errors import UsageError
+from mjx_peg import inputs
+from mjx_peg.errors import UsageError, message
 from mjx_peg.evaluation.stats import quarter_labels
 
+MAX_GRID_CSV_BYTES = 64 * 2**20  # a grid.csv of 10,000 ranges is ~1.5 MB
 _TIME_COLUMNS = ("time_mean_s", "time_min_s", "time_max_s")
 # How failures ended and the contact metrics (TrialResult): failures ended early as settled,
 # protective stops, the median peak sensed force (N), the share of the trials longer than 1.2 s
@@ -91,23 +95,32 @@ class GridTable:
     @classmethod
     def from_csv(cls, path) -> GridTable:
         """The table in a grid.csv written by csv_text; ValueError (one line) if unreadable."""
+        if not Path(path).exists():
+            raise UsageError(f"{path} is missing: not a finished evaluation")
+        text = inputs.read_text(path, MAX_GRID_CSV_BYTES)  # a regular file: a FIFO never blocks
         try:
-            with open(path, newline="") as f:
-                rows = list(csv.DictReader(f))
+            rows = list(csv.DictReader(io.StringIO(text, newline="")))
             if not rows:
                 raise UsageError("no rows")
             col = {c: [r[c] for r in rows] for c in GRID_COLUMNS if c in rows[0]}
             contact = {c: np.array(col[c], dtype=float) for c in _CONTACT_COLUMNS if c in col}
-            return cls(
+            table = cls(
                 **contact,
                 **{c: np.array(col[c], dtype=float) for c in ("linear_mm", "angular_deg")},
-                **{c: np.array(col[c], dtype=int) for c in ("trials", "successes")},
+                **{c: np.array(col[c], dtype=np.int64) for c in ("trials", "successes")},
                 **{c: np.array(col[c], dtype=float) for c in _TIME_COLUMNS},
             )
-        except OSError:
-            raise UsageError(f"{path} is missing: not a finished evaluation") from None
-        except (KeyError, TypeError, ValueError) as exc:
-            raise UsageError(f"{path} is not an evaluation grid.csv ({exc!r})") from None
+            ranges = np.concatenate([table.linear_mm, table.angular_deg])
+            if not (np.all(np.isfinite(ranges)) and np.all(ranges >= 0)):
+                raise ValueError("an error range is not a number >= 0")
+            if not (np.all(table.trials >= 1) and np.all(table.successes >= 0)):
+                raise ValueError("a count of trials or successes is not a count")
+            if np.any(table.successes > table.trials):
+                raise ValueError("a range has more successes than trials")
+            return table
+        except (KeyError, TypeError, ValueError, OverflowError, csv.Error) as exc:
+            shown = message(exc)[:100]
+            raise UsageError(f"{path} is not an evaluation grid.csv ({shown})") from None
 
     @classmethod
     def from_ranges(cls, ranges, results) -> GridTable:

@@ -14,6 +14,10 @@ before it. A step that does not read is one UsageError line naming it. Nothing i
 
 from __future__ import annotations
 
+import errno
+import os
+import re
+import shutil
 from pathlib import Path
 
 import jax
@@ -23,6 +27,23 @@ import orbax.checkpoint as ocp
 from mjx_peg import errors
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import restore_noise
+
+# tensorstore's status codes of a failed write (Orbax raises them as ValueError)
+_IO_STATUS = ("RESOURCE_EXHAUSTED", "PERMISSION_DENIED", "DATA_LOSS", "UNAVAILABLE")
+
+
+def io_failure(error: BaseException) -> tuple[int, str] | None:
+    """(errno, text) if `error` is a failed read or write of a file (an OSError, or Orbax's
+    ValueError carrying tensorstore's status and the OS error code), else None."""
+    if isinstance(error, OSError):
+        code = error.errno or errno.EIO
+        return code, error.strerror or os.strerror(code)
+    text = str(error)
+    found = re.search(r"os_error_code='(\d+)'", text)
+    if found is None and not text.startswith(_IO_STATUS):
+        return None
+    code = int(found.group(1)) if found else errno.EIO
+    return code, os.strerror(code)
 
 
 def has_steps(directory) -> bool:
@@ -51,13 +72,31 @@ class Checkpoints:
         width = self.key_width
         return {f"{i:0{width}d}": np.asarray(leaf) for i, leaf in enumerate(jax.tree.leaves(tree))}
 
+    def drop_partial(self) -> None:
+        """Remove the steps a killed save left unfinished (Orbax ignores them, then warns when
+        it saves that step again)."""
+        for partial in self.directory.glob("*.orbax-checkpoint-tmp*"):
+            shutil.rmtree(partial, ignore_errors=True)
+
     def latest_step(self) -> int | None:
         return self._manager.latest_step()
 
     def save(self, step: int, tree) -> None:
-        """Save `tree` as step `step` and wait until it is on disk."""
-        self._manager.save(int(step), args=ocp.args.StandardSave(self._flat(tree)))
-        self._manager.wait_until_finished()
+        """Save `tree` as step `step` and wait until it is on disk. A save that fails on I/O (a
+        full disk) leaves nothing of the step and raises OSError naming it (Orbax raises
+        ValueError with tensorstore's status for some of these)."""
+        restore_noise.expect_failed_reads(self.directory)
+        try:
+            with restore_noise.held_reports():
+                self._manager.save(int(step), args=ocp.args.StandardSave(self._flat(tree)))
+                self._manager.wait_until_finished()
+        except (OSError, ValueError) as e:
+            for partial in self.directory.glob(f"{int(step)}.orbax-checkpoint-tmp*"):
+                shutil.rmtree(partial, ignore_errors=True)
+            failure = io_failure(e)
+            if failure is None:
+                raise
+            raise OSError(*failure, str(self.directory / str(int(step)))) from None
 
     def restore(self, template, step: int | None = None):
         """Step `step` (default: the latest) as a tree of `template`'s structure (NumPy leaves);

@@ -17,16 +17,12 @@ earlier run aside (never deletes it) and replaces nothing but a training run; --
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 from pathlib import Path
 
-from mjx_peg import cli, outdir
-from mjx_peg.engines import ENGINES
+from mjx_peg import cli, outdir, signals
 from mjx_peg.errors import UsageError
-from mjx_peg.learn.config import ACTION_MAPS, PRIORS, prior_settings
-from mjx_peg.policy.observation import LAYOUTS
-from mjx_peg.skill.search import SKILL_DESCRIPTIONS
-from mjx_peg.world.constants import GRASP_MODELS
 
 PROG = "train.py"
 
@@ -36,7 +32,11 @@ MAX_NUM_ENVS = 65_536  # trials per iteration
 
 
 def parser() -> argparse.ArgumentParser:
-    from mjx_peg.learn.config import PRESETS
+    from mjx_peg.engines import ENGINES
+    from mjx_peg.learn.config import ACTION_MAPS, PRESETS, PRIORS
+    from mjx_peg.policy.observation import LAYOUTS
+    from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+    from mjx_peg.world.constants import GRASP_MODELS
 
     p = cli.Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), help="default: quick")
@@ -135,11 +135,13 @@ def parser() -> argparse.ArgumentParser:
 
 def resolve_config(args):
     """The preset with the command line's overrides applied (ValueError on bad values)."""
-    from mjx_peg.learn.config import PRESETS
+    from mjx_peg.learn.config import PRESETS, prior_settings
     from mjx_peg.learn.run_dir import RunDir
     from mjx_peg.policy.export import load_policy
     from mjx_peg.policy.shipped import resolve_policy
 
+    if args.seed is not None and args.seeds is not None:
+        raise UsageError("--seed and --seeds: give one of them")
     overrides = {
         "engine": args.engine,
         "seed": args.seed,
@@ -204,6 +206,15 @@ def join_distributed() -> None:
         raise UsageError(f"--distributed: could not join the run ({e})") from None
 
 
+def _writes_files(args) -> bool:
+    """Whether this process writes the run directory (one of a --distributed run's does)."""
+    if not args.distributed:
+        return True
+    import jax
+
+    return jax.process_index() == 0
+
+
 @cli.entry(PROG, "interrupted; rerun the same command to resume")
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
@@ -230,7 +241,8 @@ def main(argv=None) -> int:
     if config.init_from:
         outdir.check_apart(out, {"--init-from": config.init_from})
     if args.distributed:
-        join_distributed()
+        join_distributed()  # before anything asks JAX for its devices
+    cli.check_jax()
     import mjx_peg.learn.env  # noqa: F401  first: it imports brax with the Warp message muted
     from mjx_peg.learn.trainer import train
     from mjx_peg.world import mujoco_log
@@ -239,27 +251,32 @@ def main(argv=None) -> int:
     if args.ray is not None:  # join the cluster before the run directory is written
         from mjx_peg.engines import ray_pool
 
+        signals.working()  # Ray starts processes: a signal stops them
         ray_pool.connect(args.ray)
     runs = [(config, out)]
     if args.seeds is not None:
-        if args.seed is not None:
-            raise UsageError("--seed and --seeds: give one of them")
         runs = [(config.replace(seed=seed), Path(out, f"seed-{seed}")) for seed in args.seeds]
-    for run_config, run_out in runs:
-        if len(runs) > 1 and not args.force and finished_run(run_config, run_out):
-            cli.note(PROG, f"{run_out} is finished: skipped")
-            continue
-        summary = train(
-            run_config,
-            run_out,
-            force=args.force,
-            checkpoint_every_s=args.checkpoint_every,
-            progress=not args.no_progress,
-            engine_options=options,
-            note=lambda text: cli.note(PROG, text),
-            tensorboard=args.tensorboard,
-        )
-        print(summary.line())
+    writes = _writes_files(args)
+    # One writer per --out and per seed's run in it (with --distributed, the process that
+    # writes the files holds them)
+    with outdir.exclusive(out) if writes else contextlib.nullcontext():
+        for run_config, run_out in runs:
+            if len(runs) > 1 and not args.force and finished_run(run_config, run_out):
+                cli.note(PROG, f"{run_out} is finished: skipped")
+                continue
+            held = outdir.exclusive(run_out) if writes and run_out != out else None
+            with held or contextlib.nullcontext():
+                summary = train(
+                    run_config,
+                    run_out,
+                    force=args.force,
+                    checkpoint_every_s=args.checkpoint_every,
+                    progress=not args.no_progress,
+                    engine_options=options,
+                    note=lambda text: cli.note(PROG, text),
+                    tensorboard=args.tensorboard,
+                )
+            print(summary.line())
     if len(runs) > 1:
         from mjx_peg.learn.seeds import summarize
 

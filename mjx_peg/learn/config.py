@@ -37,6 +37,7 @@ OBS_STATISTICS = ("running", "context")
 # "sigmoid" (the first runs' map) centres each number's range instead, and the
 # baseline's k_t, k_theta and translational compliance sit on its flat edge there.
 ACTION_MAPS = ("centred", "sigmoid")
+MAX_HIDDEN = 4096  # units of a hidden layer
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,6 +136,14 @@ class TrainConfig:
     observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
+        try:
+            self._validate()
+        except (TypeError, ValueError) as e:  # a field of another type (a config.json's)
+            if isinstance(e, UsageError):
+                raise
+            raise UsageError(f"TrainConfig: a field has the wrong type ({e})") from None
+
+    def _validate(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
         for s in shapes:
             if s not in SHAPES:
@@ -146,6 +155,25 @@ class TrainConfig:
         for name, kind in (("sensor_cutoff_scale", float), ("sensor_noise_scale", float),
                            ("sensor_delay_offset", int)):  # fmt: skip
             object.__setattr__(self, name, tuple(kind(v) for v in getattr(self, name)))
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, int)
+            or not 0 <= self.seed < 2**32
+        ):
+            raise UsageError(f"--seed must be an integer in 0..4,294,967,295, got {self.seed!r}")
+        for name in ("policy_hidden", "value_hidden"):
+            if (
+                not all(1 <= h <= MAX_HIDDEN for h in getattr(self, name))
+                or len(getattr(self, name)) > 8
+            ):
+                raise UsageError(f"{name} must be at most 8 layers of 1..{MAX_HIDDEN} units")
+        for name in ("preset", "engine", "grasp_model", "skill", "action_map", "prior"):
+            if not isinstance(getattr(self, name), str):
+                raise UsageError(f"{name} must be a name, got {getattr(self, name)!r}")
+        if self.init_from is not None and not isinstance(self.init_from, str):
+            raise UsageError(f"init_from must be a path, got {self.init_from!r}")
+        if not isinstance(self.full_time_limit, bool):
+            raise UsageError(f"full_time_limit must be true or false, got {self.full_time_limit!r}")
         if self.prior not in PRIORS:
             raise UsageError(f"unknown prior {self.prior!r}: choose from {', '.join(PRIORS)}")
         if self.obs_statistics not in OBS_STATISTICS:
@@ -163,7 +191,7 @@ class TrainConfig:
         for name in ("trials", "num_envs", "num_minibatches", "update_epochs", "context_samples",
                      "eval_trials"):  # fmt: skip
             value = getattr(self, name)
-            if not isinstance(value, int) or value <= 0:
+            if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
                 flag = "--" + name.replace("_", "-")
                 raise UsageError(f"{flag} must be a positive integer, got {value}")
         for name in (

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from pathlib import Path
 
-from mjx_peg import errors, outdir
+from mjx_peg import errors, inputs, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.checkpoints import Checkpoints
 from mjx_peg.learn.config import TrainConfig
@@ -64,6 +63,30 @@ def _recorded(doc: dict) -> dict:
     return TrainConfig.from_json(doc).to_json()
 
 
+MAX_TABLE_BYTES = 2**31  # metrics.csv, trials.csv or eval.csv (10,000,000 trials: ~300 MB)
+
+
+def _parses(row: list[str], width: int, index: int) -> bool:
+    """Whether a table row is whole: `width` fields, an integer at `index`."""
+    return len(row) == width and row[index].strip().isdigit()
+
+
+def _start_table(path: Path, columns) -> None:
+    """Write a table's header, whole or not at all (a full disk leaves no empty table)."""
+    text = io.StringIO(newline="")
+    csv.writer(text).writerow(columns)
+    outdir.write_atomic(path, text.getvalue())
+
+
+def _append_rows(path: Path, rows: list[list]) -> None:
+    """Append rows to a table; a full disk's error names the table."""
+    try:
+        with open(path, "a", newline="") as f:
+            csv.writer(f).writerows(rows)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, str(path)) from None
+
+
 class RunDir:
     """Paths and bookkeeping of one run directory."""
 
@@ -81,17 +104,23 @@ class RunDir:
         self.out = OutDir(self.path, self.config_path.name, "training run", read=_recorded)
 
     def is_finished(self) -> bool:
-        try:
-            return bool(json.loads(self.manifest_path.read_text()).get("finished"))
-        except (OSError, ValueError):
+        if not self.manifest_path.exists():
             return False
+        manifest = inputs.read_json(self.manifest_path, "a policy manifest")
+        return isinstance(manifest, dict) and manifest.get("finished") is True
 
     def read_config(self) -> TrainConfig:
+        if not self.config_path.exists():
+            raise UsageError(f"{self.path} is not a training run (it holds no config.json)")
+        doc = inputs.read_json(self.config_path, "a training run's config")
         try:
-            return TrainConfig.from_json(json.loads(self.config_path.read_text()))
-        except (OSError, ValueError, TypeError) as e:
+            if not isinstance(doc, dict):
+                raise TypeError("not an object")
+            return TrainConfig.from_json(doc)
+        except (ValueError, TypeError, AttributeError) as e:
             raise UsageError(
-                f"{self.path} is not a training run ({self.config_path.name}: {e})"
+                f"{self.path} is not a training run ({self.config_path.name}: "
+                f"{errors.message(e)[:100]})"
             ) from None
 
     def plan(self, config: TrainConfig, force: bool, init_from=None) -> str:
@@ -117,26 +146,27 @@ class RunDir:
         return Checkpoints(self.checkpoint_dir, keep=KEEP_CHECKPOINTS)
 
     def start_tables(self) -> None:
-        tables = ((self.metrics_path, METRICS_COLUMNS), (self.trials_path, TRIALS_COLUMNS),
-                  (self.eval_path, EVAL_COLUMNS))  # fmt: skip
-        for path, columns in tables:
-            with open(path, "w", newline="") as f:
-                csv.writer(f).writerow(columns)
+        for path, columns in self._columns().items():
+            _start_table(path, columns)
 
     def truncate_tables(self, trials: int) -> None:
         """Drop rows written after the checkpoint that holds `trials` trials."""
+        columns = self._columns()
+        for path in columns:
+            if path.exists() or path.is_symlink():
+                inputs.regular_file(path)  # a FIFO or folder there: one line, never replaced
         if not (self.metrics_path.is_file() and self.trials_path.is_file()):
             self.start_tables()
             return
         if not self.eval_path.is_file():  # a run from before the held-out evaluation
-            with open(self.eval_path, "w", newline="") as f:
-                csv.writer(f).writerow(EVAL_COLUMNS)
+            _start_table(self.eval_path, EVAL_COLUMNS)
         tables = ((self.metrics_path, "trials"), (self.trials_path, "trial"),
                   (self.eval_path, "trials"))  # fmt: skip
         for path, column in tables:
             try:
-                with open(path, newline="") as f:
-                    rows = list(csv.reader(f))
+                rows = list(csv.reader(io.StringIO(inputs.read_text(path, MAX_TABLE_BYTES))))
+                if not rows:  # an empty table (a full disk before its header): start it again
+                    rows = [list(columns[path])]
                 header, body = rows[0], rows[1:]
                 if path == self.metrics_path:  # an older run: columns added since, left empty
                     for name, after in _ADDED_METRICS:
@@ -146,6 +176,8 @@ class RunDir:
                             body = [r[:at] + [""] + r[at:] for r in body]
                 i = header.index(column)
                 limit = trials if column == "trials" else trials - 1
+                if body and not _parses(body[-1], len(header), i):  # a failed append's row
+                    body = body[:-1]
                 kept = [r for r in body if len(r) == len(header) and int(r[i]) <= limit]
             except (IndexError, ValueError, csv.Error, UnicodeDecodeError) as e:
                 raise UsageError(
@@ -157,11 +189,15 @@ class RunDir:
             outdir.write_atomic(path, text.getvalue())
 
     def append(self, metrics_row: list, trial_rows: list[list]) -> None:
-        with open(self.trials_path, "a", newline="") as f:
-            csv.writer(f).writerows(trial_rows)
-        with open(self.metrics_path, "a", newline="") as f:
-            csv.writer(f).writerow(metrics_row)
+        """Append an iteration's rows (a resume cuts off rows a failed append left behind)."""
+        _append_rows(self.trials_path, trial_rows)
+        _append_rows(self.metrics_path, [metrics_row])
 
     def append_eval(self, row: list) -> None:
-        with open(self.eval_path, "a", newline="") as f:
-            csv.writer(f).writerow(row)
+        """Append a held-out evaluation's row."""
+        _append_rows(self.eval_path, [row])
+
+    def _columns(self) -> dict[Path, tuple[str, ...]]:
+        """Each table of the run and its columns."""
+        return {self.metrics_path: METRICS_COLUMNS, self.trials_path: TRIALS_COLUMNS,
+                self.eval_path: EVAL_COLUMNS}  # fmt: skip

@@ -19,7 +19,7 @@ import jax.experimental.multihost_utils
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_peg import outdir
+from mjx_peg import outdir, signals
 from mjx_peg.engines import interrupt
 from mjx_peg.errors import UsageError
 from mjx_peg.learn import checkpoints, ppo
@@ -207,6 +207,7 @@ def train(
     initial = None
     if config.init_from and not resuming:
         initial = load_init(config, state)  # read before `out` is touched
+    signals.working()  # from here a Ctrl-C unwinds: every finished iteration is kept
     if primary:
         run.prepare(config, plan, note)
     if jax.process_count() > 1:
@@ -215,6 +216,8 @@ def train(
                        config.map_centre(), config.observation, config.action_size,
                        ppo.action_transform(config))  # fmt: skip
     manager = run.checkpoints()
+    if primary:
+        manager.drop_partial()
     if plan == "resume" and manager.latest_step() is not None:
         try:
             state = manager.restore(state)

@@ -18,18 +18,18 @@ truncated or inconsistent. No JAX is imported here: the real robot runs this.
 from __future__ import annotations
 
 import dataclasses
-import json
-import zipfile
+import os
 from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import file_versions
+from mjx_peg import file_versions, inputs
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.policy import network, observation, shipped
 from mjx_peg.skill import params
 from mjx_peg.skill.search import SKILLS, NamedSkill, named_skill
+from mjx_peg.world.constants import SHAPES
 
 SCHEMA = "mjx-peg-policy"
 SCHEMA_VERSION = 1
@@ -63,6 +63,16 @@ class Policy:
     def trained_skill(self) -> NamedSkill:
         """The skill it was trained with ("paper" for runs made before skills had names)."""
         return trained_skill(self.manifest.get("config", {}))
+
+    @property
+    def shapes(self) -> tuple[str, ...]:
+        """The shapes it was trained on (its manifest's config.shapes); () if unrecorded."""
+        return tuple(self.manifest.get("config", {}).get("shapes", ()))
+
+    @property
+    def sizes_mm(self) -> tuple[float, ...]:
+        """The sizes S (mm) it was trained on (config.size_mm); () if unrecorded."""
+        return tuple(float(s) for s in self.manifest.get("config", {}).get("size_mm", ()))
 
     def act(self, obs) -> np.ndarray:
         """(B, 38) unbounded action (the network's mean) for (B, n) observations."""
@@ -126,7 +136,7 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
     if kind == "sigmoid":
         return None
     if kind != "centred":
-        raise PolicyError(f"{where}: unknown action map {kind!r}")
+        raise PolicyError(f"{where}: unknown action map {str(kind)[:40]!r}")
     try:
         return params.check_centre(ranges["centre"])
     except (ValueError, TypeError) as e:
@@ -223,9 +233,58 @@ def choose_skill(name: str | None, policy) -> NamedSkill:
     return policy_skill(policy) if name is None else named_skill(name)
 
 
+MAX_LAYERS, MAX_WIDTH = 16, 4096  # a policy network no larger than this is read
+
+
+def _manifest_problem(manifest: dict) -> str | None:
+    """What makes a manifest's structure unusable, or None: types and sizes of every field
+    `load_policy` and its callers read."""
+    network, obs, action = (manifest.get(k) for k in ("network", "observation", "action"))
+    for name, part in (("network", network), ("observation", obs), ("action", action)):
+        if not isinstance(part, dict):
+            return f"{name} is not an object"
+    layers = network.get("layers")
+    if not isinstance(layers, list) or not 1 <= len(layers) <= MAX_LAYERS:
+        return f"network.layers is not a list of 1 to {MAX_LAYERS} layer shapes"
+    for shape in layers:
+        if not (
+            isinstance(shape, list)
+            and len(shape) == 2
+            and all(type(n) is int and 1 <= n <= MAX_WIDTH for n in shape)
+        ):
+            shown = str(shape)[:40]
+            return f"network.layers holds {shown}, not [inputs, outputs] in 1..{MAX_WIDTH}"
+    if not isinstance(action.get("ranges"), dict):
+        return "action.ranges is not an object"
+    config = manifest.get("config", {})
+    if not isinstance(config, dict):
+        return "config is not an object"
+    skill = config.get("skill", "paper")
+    if not isinstance(skill, str) or not (skill in SKILLS or skill in file_versions.FORMER_SKILLS):
+        return f"config.skill {str(skill)[:40]} is not one of {', '.join(SKILLS)}"
+    shapes, sizes = config.get("shapes"), config.get("size_mm")  # absent: not recorded
+    if shapes is not None and not (
+        isinstance(shapes, list) and shapes and all(s in SHAPES for s in map(str, shapes))
+    ):
+        return f"config.shapes is not a list of shapes of {', '.join(SHAPES)}"
+    if sizes is not None and not (
+        isinstance(sizes, list) and sizes and all(type(v) in (int, float) and 0 < v < 1e3
+                                                  for v in sizes)
+    ):  # fmt: skip
+        return "config.size_mm is not a list of sizes in mm"
+    if "trials" in manifest and not (type(manifest["trials"]) is int and manifest["trials"] >= 0):
+        return "trials is not a count"
+    if "finished" in manifest and not isinstance(manifest["finished"], bool):
+        return "finished is not true or false"
+    return None
+
+
 def load_policy(path) -> Policy:
     """Load a policy from a run directory (or its policy.npz), or a shipped policy by name
-    (`policy/shipped.py`: "paper" is policies/paper); PolicyError on any defect."""
+    (`policy/shipped.py`: "paper" is policies/paper); PolicyError on any defect. Only the
+    arrays the manifest names are read from policy.npz, each checked by its header first."""
+    if not isinstance(path, str | os.PathLike):
+        raise PolicyError(f"a policy is a path or a shipped policy's name, not {path!r:.40}")
     path = Path(path)
     if not path.exists() and str(path) in shipped.shipped_names():
         path = shipped.SHIPPED_DIR / str(path)
@@ -234,24 +293,19 @@ def load_policy(path) -> Policy:
     if not run_dir.is_dir():
         raise PolicyError(f"{run_dir} is not a directory")
     for f in (npz_path, manifest_path):
-        if not f.is_file():
+        if not f.exists():
             raise PolicyError(f"{run_dir} holds no {f.name}: not a run directory with a policy")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise PolicyError(f"{manifest_path} is not valid JSON ({e})") from None
+    manifest = inputs.read_json(manifest_path, "a policy manifest", error=PolicyError)
     if not isinstance(manifest, dict) or manifest.get("schema") != SCHEMA:
         raise PolicyError(f"{manifest_path} is not an mjx-peg policy manifest")
     if manifest.get("schema_version") != SCHEMA_VERSION:
         raise PolicyError(
-            f"{manifest_path} has schema version {manifest.get('schema_version')!r}; "
+            f"{manifest_path} has schema version {str(manifest.get('schema_version'))[:20]}; "
             f"this mjx-peg reads version {SCHEMA_VERSION}"
         )
-    try:
-        with np.load(npz_path, allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise PolicyError(f"{npz_path} is corrupt or truncated ({type(e).__name__}: {e})") from None
+    why = _manifest_problem(manifest)
+    if why:
+        raise PolicyError(f"{manifest_path}: {why}")
     try:
         shapes = [tuple(s) for s in manifest["network"]["layers"]]
         names = manifest["observation"]["names"]
@@ -264,43 +318,44 @@ def load_policy(path) -> Policy:
         _run_skill(manifest)
     except (UsageError, KeyError, TypeError) as e:
         raise PolicyError(f"{manifest_path}: its skill is not readable ({e})") from None
-    if layout not in observation.LAYOUTS:
-        raise PolicyError(f"{manifest_path}: unknown observation layout {layout!r}")
+    if not isinstance(layout, str) or layout not in observation.LAYOUTS:
+        raise PolicyError(f"{manifest_path}: unknown observation layout {str(layout)[:40]!r}")
     expected = observation.LAYOUTS[layout]
     if names != list(expected):
-        raise PolicyError(f"{manifest_path} observation {names} is not the {layout} layout's")
+        raise PolicyError(
+            f"{manifest_path}: observation.names is not the {layout} layout's "
+            f"({', '.join(expected)})"
+        )
     if activation != ACTIVATION:
         raise PolicyError(f"{manifest_path}: unsupported activation")
-    try:
-        layers = tuple(
-            (arrays[f"layer{i}_kernel"], arrays[f"layer{i}_bias"]) for i in range(len(shapes))
-        )
-        obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
-    except KeyError as e:
-        raise PolicyError(
-            f"{npz_path} lacks the array {e} that {manifest_path.name} names"
-        ) from None
     width = len(expected)
-    if shapes and shapes[0][0] != width:
-        raise PolicyError(
-            f"{npz_path}: the network reads {shapes[0][0]} numbers, the {layout} observation "
-            f"layout {width}"
-        )
-    for i, ((kernel, bias), shape) in enumerate(zip(layers, shapes, strict=True)):
-        if kernel.shape != shape or bias.shape != (shape[1],) or shape[0] != width:
-            raise PolicyError(f"{npz_path}: layer {i} has shape {kernel.shape}, expected {shape}")
+    for i, shape in enumerate(shapes):
+        if shape[0] != width:
+            before = "the one before" if i else f"the {layout} observation layout"
+            raise PolicyError(
+                f"{manifest_path}: layer {i} takes {shape[0]} inputs, {before} gives {width}"
+            )
         width = shape[1]
     if width not in (params.N_PARAMS, params.N_LEARNED):
         raise PolicyError(
-            f"{npz_path}: the network outputs {width} numbers, not {params.N_PARAMS} or "
+            f"{manifest_path}: the network outputs {width} numbers, not {params.N_PARAMS} or "
             f"{params.N_LEARNED}"
         )
     if centre is not None and centre.shape != (width,):
         raise PolicyError(f"{manifest_path}: the map's centre has {centre.size} numbers, the "
                           f"network outputs {width}")  # fmt: skip
-    if obs_mean.shape != (len(expected),) or obs_std.shape != (len(expected),):
-        raise PolicyError(f"{npz_path}: observation normalization has the wrong shape")
-    everything = [obs_mean, obs_std] + [w for layer in layers for w in layer]
-    if not all(np.all(np.isfinite(a)) for a in everything) or np.any(obs_std <= 0):
-        raise PolicyError(f"{npz_path} holds NaN, infinite or non-positive normalization values")
+    members = {
+        "obs_mean": inputs.Member("f", (len(expected),)),
+        "obs_std": inputs.Member("f", (len(expected),)),
+    }
+    for i, shape in enumerate(shapes):
+        members[f"layer{i}_kernel"] = inputs.Member("f", shape)
+        members[f"layer{i}_bias"] = inputs.Member("f", (shape[1],))
+    arrays = inputs.read_npz(npz_path, members, error=PolicyError)
+    layers = tuple(
+        (arrays[f"layer{i}_kernel"], arrays[f"layer{i}_bias"]) for i in range(len(shapes))
+    )
+    obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
+    if np.any(obs_std <= 0):
+        raise PolicyError(f"{npz_path}: obs_std holds values <= 0")
     return Policy(layers, obs_mean, obs_std, manifest, centre, layout)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from mjx_peg.errors import UsageError
+from mjx_peg.errors import UsageError, shown_path
 
 SHIPPED_DIR = Path(__file__).resolve().parents[2] / "policies"
 
@@ -29,7 +29,13 @@ def resolve_policy(policy, flag: str = "--policy", baseline: bool = True) -> str
     as given, else the shipped policy of that name (relative to the working directory where it
     lies below it). UsageError (one line naming `flag` and the shipped ones) if it is neither."""
     text = str(policy)
-    if (baseline and text == "baseline") or Path(text).exists():
+    shown = shown_path(text)
+    try:
+        exists = Path(text).exists()
+    except (OSError, ValueError) as e:  # a name too long, a NUL character
+        why = getattr(e, "strerror", None) or str(e)
+        raise UsageError(f"{flag} {shown}: cannot be a path ({why})") from None
+    if (baseline and text == "baseline") or exists:
         return text
     if text in shipped_names():
         path = SHIPPED_DIR / text
@@ -37,7 +43,7 @@ def resolve_policy(policy, flag: str = "--policy", baseline: bool = True) -> str
         return path.as_posix() if relative.startswith("..") else relative
     names = ", ".join(shipped_names()) or f"none: {SHIPPED_DIR} is absent"
     raise UsageError(
-        f"{flag} {text}: no such run directory, and no shipped policy of that name "
+        f"{flag} {shown}: no such run directory, and no shipped policy of that name "
         f"(shipped: {names}{'; or baseline' if baseline else ''})"
     )
 

@@ -24,21 +24,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from mjx_peg import cli, outdir
-from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.outdir import write_json
-from mjx_peg.policy.export import choose_skill, load_policy
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.robot.runtime import HoleEstimate, SkillRuntime, controller_vector, run_skill
-from mjx_peg.robot.sim_arm import SimArm
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
-from mjx_peg.world.parts import fit_text
-from mjx_peg.world.task import HOLE_SCALE_HELP, TaskConfig, parse_hole_scale, sample_trials
 
 PROG = "python -m mjx_peg.robot"
 PHYSICS_HZ = 1.0 / constants.TIMESTEP
@@ -51,6 +42,8 @@ SKILL_FILE = "skill.json"  # the skill the runs ran: {"name", "constants"}
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.world.task import HOLE_SCALE_HELP
+
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument(
         "--policy",
@@ -139,7 +132,7 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
     """Physics steps per command for a rate that divides the physics rate and whose period fits
     in `time_limit` (s); UsageError if not."""
     if not (math.isfinite(hz) and 0 < hz <= PHYSICS_HZ):
-        raise UsageError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {hz:g}")
+        raise UsageError(f"--command-hz must be in (0, {PHYSICS_HZ:g}], got {cli.number_text(hz)}")
     if 1.0 / hz > time_limit:  # also every rate too small to divide by (5e-324 Hz)
         raise UsageError(
             f"--command-hz {hz:g} commands every {1.0 / hz:g} s, longer than the --time-limit "
@@ -149,12 +142,14 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
     if abs(PHYSICS_HZ / steps - hz) > 1e-3:
         raise UsageError(
             f"--command-hz must divide the {PHYSICS_HZ:g} Hz physics "
-            f"(500, 250, 166.7, 125, 100, ...), got {hz:g}"
+            f"(500, 250, 166.7, 125, 100, ...), got {cli.number_text(hz)}"
         )
     return steps
 
 
 def _setup(args):
+    from mjx_peg.world.task import TaskConfig, parse_hole_scale
+
     steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,
                                   grasp_model=args.grasp_model,
@@ -167,17 +162,20 @@ def _setup(args):
 
 def _has_rows(path: Path) -> bool:
     """Whether a results file holds any result (more than a header)."""
-    try:
-        with open(path, "rb") as f:
-            return len(f.read(1 << 16).splitlines()) > 1
-    except FileNotFoundError:
-        return False
+    if not path.is_file():  # absent, or something that is not a file (kept, never read)
+        return path.exists() or path.is_symlink()
+    with open(path, "rb") as f:
+        return len(f.read(1 << 16).splitlines()) > 1
 
 
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     real = args.robot_ip is not None or args.dry_run or args.rehearse
+    for flag, given in (("--model controller", args.model == "controller"),
+                        ("--friction-comp", args.friction_comp)):  # fmt: skip
+        if given and args.robot_ip is None and not args.rehearse:
+            raise UsageError(f"{flag} asks a UR5e's controller: give --robot-ip (or --rehearse)")
     if real or args.shadow or args.hole:
         if args.robot_ip is not None:
             _check_host(args.robot_ip)
@@ -194,11 +192,29 @@ def main(argv=None) -> int:
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)
+    from mjx_peg.policy.export import load_policy
+
     task, steps = _setup(args)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
-    # The output location, before any trial: never the policy, no earlier result replaced
-    # without --force (moved aside then), writable; then one row per trial as it ends.
+    # The output location, before any trial: never the policy, one writer at a time, no earlier
+    # result replaced without --force (moved aside then), writable; then one row per trial as
+    # it ends.
     outdir.check_apart(args.out, {"--policy": args.policy})
+    with outdir.exclusive(args.out):
+        return _simulate(args, task, steps, policy)
+
+
+def _simulate(args, task, steps: int, policy) -> int:
+    """The trials of the simulated arm, into --out (held)."""
+    import numpy as np
+
+    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.outdir import write_json
+    from mjx_peg.policy.export import choose_skill
+    from mjx_peg.robot import runtime, sim_arm
+    from mjx_peg.world.parts import fit_text
+    from mjx_peg.world.task import sample_trials
+
     results = args.out / RESULTS
     if _has_rows(results) or results.is_symlink():
         outdir.refuse_or_move([results], args.force, lambda text: cli.note(PROG, text))
@@ -207,8 +223,8 @@ def main(argv=None) -> int:
 
     mujoco_log.send_to(args.out)
     specs = sample_trials(task, args.seed, args.trials)
-    holes = [HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
-    vectors = [controller_vector(policy, hole) for hole in holes]
+    holes = [runtime.HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
+    vectors = [runtime.controller_vector(policy, hole) for hole in holes]
     skill = choose_skill(args.skill, policy)
     write_json(args.out / SKILL_FILE, skill.record())
     config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
@@ -218,33 +234,42 @@ def main(argv=None) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=len(specs), desc="trials", unit="trial", file=sys.stderr)
-    with open(results, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(COLUMNS)
-        f.flush()
-        try:
-            for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
-                arm = SimArm(specs, i, command_steps=steps, success_height=config.success_height,
-                             actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
-                run = run_skill(arm, SkillRuntime(vector, hole, config), done=arm.inserted)
-                row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
-                       int(run.protective_stop), int(run.stopped == "settled"),
-                       f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
-                writer.writerow(row)
-                f.flush()  # a crash keeps every finished trial
-                rows.append(row)
+    try:
+        with open(results, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(COLUMNS)
+            f.flush()
+            try:
+                for i, (vector, hole) in enumerate(zip(vectors, holes, strict=True)):
+                    arm = sim_arm.SimArm(specs, i, command_steps=steps,
+                                         success_height=config.success_height,
+                                         actuator_lag_s=args.actuator_lag_ms / 1000.0)  # fmt: skip
+                    skill_run = runtime.SkillRuntime(vector, hole, config)
+                    run = runtime.run_skill(arm, skill_run, done=arm.inserted)
+                    row = (i, int(run.success), f"{run.time_s:.3f}", run.commands, run.stopped,
+                           int(run.protective_stop), int(run.stopped == "settled"),
+                           f"{run.peak_force:.2f}", f"{arm.chatter():.3f}")  # fmt: skip
+                    writer.writerow(row)
+                    f.flush()  # a crash keeps every finished trial
+                    rows.append(row)
+                    if bar is not None:
+                        bar.update(1)
+            except KeyboardInterrupt:
+                print(
+                    f"{PROG}: interrupted after {len(rows)} of {len(specs)} trials; their rows are "
+                    f"in {results}",
+                    file=sys.stderr,
+                )
+                return cli.EXIT_INTERRUPTED
+            finally:
                 if bar is not None:
-                    bar.update(1)
-        except KeyboardInterrupt:
-            print(
-                f"{PROG}: interrupted after {len(rows)} of {len(specs)} trials; their rows are "
-                f"in {results}",
-                file=sys.stderr,
-            )
-            return cli.EXIT_INTERRUPTED
-        finally:
-            if bar is not None:
-                bar.close()
+                    bar.close()
+    except OSError as e:  # a full disk: named, and no runs.csv without a row left behind
+        if not rows:
+            results.unlink(missing_ok=True)
+        if e.filename is not None:
+            raise
+        raise OSError(e.errno, e.strerror, str(results)) from None
     ok = np.array([r[1] for r in rows], dtype=bool)
     times = np.array([float(r[2]) for r in rows])
     median = f"{np.median(times[ok]):.2f} s" if ok.any() else "-"

@@ -25,7 +25,7 @@ import numpy as np
 
 from mjx_peg import cli, outdir
 from mjx_peg.engines.trial import TrialConfig, as_controller_params, fitted_basis
-from mjx_peg.errors import UsageError
+from mjx_peg.errors import UsageError, shown_path
 from mjx_peg.outdir import write_json
 from mjx_peg.policy.export import choose_skill, load_policy
 from mjx_peg.policy.shipped import resolve_policy
@@ -62,10 +62,24 @@ def parse_hole(text: str) -> tuple[float, float, float]:
     return x / 1000.0, y / 1000.0, math.radians(yaw)
 
 
-def trained_shapes(policy) -> tuple[str, ...] | None:
-    """The shapes a loaded policy was trained on (its manifest's task), None if unrecorded."""
-    shapes = policy.manifest.get("config", {}).get("task", {}).get("shapes")
-    return tuple(shapes) if shapes else None
+def check_trained_for(policy, shape: str, size_mm: float, flag: str = "--policy") -> None:
+    """UsageError unless the loaded `policy` was trained on `shape` and at a size S within the
+    sizes it was trained at (its manifest's config.shapes and config.size_mm): the arm runs only
+    a part the policy has learned."""
+    name = flag
+    if not policy.shapes or not policy.sizes_mm:
+        raise UsageError(f"{name} does not record the shapes and sizes it was trained on")
+    if shape not in policy.shapes:
+        raise UsageError(
+            f"{name} was trained on {', '.join(policy.shapes)}, not {shape}: transfer it first "
+            "(train.py --preset transfer --init-from ...)"
+        )
+    lo, hi = min(policy.sizes_mm), max(policy.sizes_mm)
+    if not lo - 1e-6 <= size_mm <= hi + 1e-6:
+        trained = f"{lo:g} mm" if lo == hi else f"{lo:g}-{hi:g} mm"
+        raise UsageError(
+            f"{name} was trained at S = {trained}, not {size_mm:g} mm: train it at that size first"
+        )
 
 
 def plan(hole: HoleEstimate, vector: np.ndarray, config: TrialConfig) -> dict:
@@ -255,15 +269,11 @@ def run(args, prog: str) -> int:
     x, y, yaw = parse_hole(args.hole)
     scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
     hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0, scale)
+    given, args.policy = args.policy, resolve_policy(args.policy)
     policy = args.policy
     if policy != "baseline":
-        policy = load_policy(resolve_policy(policy))
-        shapes = trained_shapes(policy)
-        if shapes is not None and args.shape not in shapes:
-            raise UsageError(
-                f"--policy {args.policy} was trained on {', '.join(shapes)}, not {args.shape}: "
-                "transfer it first (train.py --preset transfer --init-from ...)"
-            )
+        policy = load_policy(policy)
+        check_trained_for(policy, args.shape, args.size, f"--policy {shown_path(given)}")
     vector = controller_vector(policy, hole)
     skill = choose_skill(args.skill, policy)
     config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
@@ -273,11 +283,15 @@ def run(args, prog: str) -> int:
         print(f"{prog}: dry run: nothing was connected or moved")
         return 0
     outdir.check_apart(args.out, {"--policy": args.policy})
+    with outdir.exclusive(args.out):
+        return _on_the_arm(args, prog, hole, vector, skill, config, p)
+
+
+def _on_the_arm(args, prog, hole: HoleEstimate, vector, skill, config: TrialConfig, p) -> int:
+    """Connect, check, move and run the skill; the log into --out (held)."""
     paths = [args.out / RUN_CSV, args.out / RUN_PNG, args.out / RUN_SKILL]
-    if any(q.exists() or q.is_symlink() for q in paths):
-        outdir.refuse_or_move(paths, args.force, lambda text: cli.note(prog, text))
-    outdir.prepare_dir(args.out)
-    write_json(paths[2], skill.record())
+    if not args.force:  # an earlier run is kept: refused before the robot is touched
+        outdir.refuse_or_move(paths, False)
     if args.rehearse:
         robot = rehearsal_robot(hole, p["q_start"], args.seed)
         interfaces, clock, where = (
@@ -306,6 +320,10 @@ def run(args, prog: str) -> int:
         **({"clock": clock} if clock else {}),
     )
     arm.check_ready()
+    # the robot is ready: --out is made, then it moves
+    outdir.refuse_or_move(paths, args.force, lambda text: cli.note(prog, text))
+    outdir.prepare_dir(args.out)
+    write_json(paths[2], skill.record())
     if not args.shadow:
         control.moveJ([float(v) for v in p["q_start"]], MOVE_SPEED, MOVE_ACCEL)
         control.zeroFtSensor()
@@ -331,4 +349,4 @@ def run(args, prog: str) -> int:
     return 1 if adapter_stop else 0
 
 
-__all__ = ["UR5eStop", "parse_hole", "plan", "run", "trained_shapes"]
+__all__ = ["UR5eStop", "check_trained_for", "parse_hole", "plan", "run"]

@@ -274,8 +274,9 @@ class NamedSkill(NamedTuple):
 
 def skill_config(name: str) -> SkillConfig:
     """The SkillConfig of a named skill (`SKILLS`)."""
-    if name not in SKILLS:
-        raise UsageError(f"unknown skill {name!r}: choose one of {', '.join(SKILLS)}")
+    if not isinstance(name, str) or name not in SKILLS:
+        shown = repr(name)[:40]
+        raise UsageError(f"unknown skill {shown}: choose one of {', '.join(SKILLS)}")
     return SKILLS[name]
 
 

@@ -33,7 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import inputs
 from mjx_peg.errors import UsageError
+
+MAX_PIXELS = 16_384  # a camera image's width or height
 
 
 class CalibrationError(UsageError):
@@ -57,8 +60,10 @@ class CameraCalibration:
     def __post_init__(self):
         for name in ("width", "height"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise CalibrationError(f"calibration {name} must be a positive integer (px)")
+            if not 1 <= value <= MAX_PIXELS:
+                raise CalibrationError(f"calibration {name} must be in 1..{MAX_PIXELS:,} px")
         for name in ("fx", "fy", "cx", "cy"):
             value = getattr(self, name)
             if not isinstance(value, int | float | np.floating) or not math.isfinite(value):
@@ -158,18 +163,14 @@ class CameraCalibration:
     def load(cls, path: str | os.PathLike) -> CameraCalibration:
         """Read a calibration JSON file; CalibrationError (one line) if missing or unusable."""
         path = Path(path)
-        try:
-            doc = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise CalibrationError(f"camera calibration {path} does not exist") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise CalibrationError(f"cannot read camera calibration {path}: {exc}") from None
-        except json.JSONDecodeError as exc:
-            raise CalibrationError(f"camera calibration {path} is not JSON: {exc}") from None
+        if not path.exists():
+            raise CalibrationError(f"camera calibration {path} does not exist")
+        doc = inputs.read_json(path, "a camera calibration", error=CalibrationError)
         try:
             return cls.from_json(doc)
-        except CalibrationError as exc:
-            raise CalibrationError(f"{path}: {exc}") from None
+        except (CalibrationError, KeyError, TypeError, AttributeError) as exc:
+            why = f"it lacks {exc}" if isinstance(exc, KeyError) else " ".join(str(exc).split())
+            raise CalibrationError(f"{path}: {why[:160]}") from None
 
     def save(self, path: str | os.PathLike) -> Path:
         path = Path(path)

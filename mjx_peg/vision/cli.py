@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from mjx_peg import cli, outdir
@@ -151,44 +152,64 @@ def _warn_gl() -> None:
 def _render(args) -> str:
     from mjx_peg.vision.dataset import SplitConfig, prepare_split, render_split
     from mjx_peg.world import mujoco_log
+    from mjx_peg.world.constants import SHAPES, SIZE_RANGE
 
+    lo, hi = (1000.0 * s for s in SIZE_RANGE)
     sizes = []
     for s in _csv(args.sizes):
         try:
-            sizes.append(float(s))
+            size = float(s)
         except ValueError:
-            raise UsageError(f"--sizes must be numbers of mm (10..80), got {s!r}") from None
+            size = math.nan
+        if not lo <= size <= hi:
+            raise UsageError(f"--sizes must be sizes S in mm, each in [{lo:g}, {hi:g}], got "
+                             f"{s[:20]!r}")  # fmt: skip
+        sizes.append(size)
+    shapes = _csv(args.shapes)
+    for shape in shapes:
+        if shape not in SHAPES:
+            raise UsageError(
+                f"--shapes must name shapes of {', '.join(SHAPES)}, got {shape[:20]!r}"
+            )
+    for flag, values in (("--sizes", sizes), ("--shapes", shapes)):
+        if not values or len(set(values)) != len(values):
+            given = getattr(args, flag[2:])[:40]
+            raise UsageError(f"{flag} must name distinct values, got {given!r}")
     config = SplitConfig(
         count=args.count,
         seed=args.seed,
         condition=args.condition,
         width=args.width,
         height=args.height,
-        shapes=_csv(args.shapes),
+        shapes=shapes,
         sizes_mm=tuple(sizes),
     )
-    prepare_split(args.out, config, force=args.force, note=_note)
-    mujoco_log.send_to(args.out)
-    _warn_gl()
-    n = render_split(args.out, config, progress=not args.no_progress)
+    with outdir.exclusive(args.out):
+        prepare_split(args.out, config, force=args.force, note=_note)
+        mujoco_log.send_to(args.out)
+        _warn_gl()
+        n = render_split(args.out, config, progress=not args.no_progress)
     return f"rendered {n} images ({config.count} in the split) into {args.out}"
 
 
 def _train(args) -> str:
     import dataclasses
 
-    from mjx_peg.vision.dataset import check_trainable, split_config
+    from mjx_peg.vision.dataset import check_trainable, split_config, split_items
     from mjx_peg.vision.training import VisionTrainConfig, prepare_out, train
 
     outdir.check_apart(args.out, {"--data": args.data, "--val": args.val})
-    check_trainable(split_config(args.data), "--data")  # a split of its classes, before any work
-    if args.val is not None:
-        check_trainable(split_config(args.val), "--val")
+    for flag, split in (("--data", args.data), ("--val", args.val)):
+        if split is not None:  # a split of its classes with readable labels, before any work
+            check_trainable(split_config(split), flag)
+            split_items(split)
+    cli.check_jax()  # the localizer trains on JAX
     keys = ("detector_steps", "regressor_steps", "batch", "crops", "seed")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     config = dataclasses.replace(VisionTrainConfig(), **changes)
-    prepare_out(args.out, config, force=args.force, note=_note)
-    loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
+    with outdir.exclusive(args.out):
+        prepare_out(args.out, config, force=args.force, note=_note)
+        loc = train(args.data, args.out, config, val_dir=args.val, progress=not args.no_progress)
     val = loc.config.get("validation")
     text = f"trained localizer in {args.out} ({loc.config['parameters']} parameters)"
     if val:
@@ -199,16 +220,17 @@ def _train(args) -> str:
 
 
 def _evaluate(args) -> str:
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.localizer import Localizer
     from mjx_peg.vision.metrics import REPORT_FILES, evaluate_to
 
     outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
-    split_config(args.data)
-    outdir.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, _note)
-    outdir.prepare_dir(args.out)
-    report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
+    split_items(args.data)
+    with outdir.exclusive(args.out):
+        outdir.refuse_or_move([args.out / name for name in REPORT_FILES], args.force, _note)
+        outdir.prepare_dir(args.out)
+        report = evaluate_to(loc, args.data, args.out, progress=not args.no_progress)
     o = report["overall"]
     yaw = "-" if o["yaw_p99_deg"] is None else f"{o['yaw_p99_deg']:.2f}"
     return (
@@ -253,24 +275,29 @@ def _act(args) -> str:
     from mjx_peg.vision.act import RESULT_FILES, run_act
     from mjx_peg.world import mujoco_log
 
-    outdir.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, _note)
-    outdir.prepare_dir(args.out)
-    mujoco_log.send_to(args.out)
-    _warn_gl()
-    options = {"threads": args.threads} if args.threads else {}
-    s = run_act(
-        loc,
-        args.policy,
-        args.out,
-        shapes,
-        args.size / 1000.0,
-        args.trials,
-        args.seed,
-        options,
-        progress=not args.no_progress,
-        time_limit_s=args.time_limit,
-        skill=args.skill,
-    )
+    if args.policy != "baseline":
+        from mjx_peg.policy.export import load_policy
+
+        load_policy(args.policy)  # a readable policy, before --out is touched
+    with outdir.exclusive(args.out):
+        outdir.refuse_or_move([args.out / name for name in RESULT_FILES], args.force, _note)
+        outdir.prepare_dir(args.out)
+        mujoco_log.send_to(args.out)
+        _warn_gl()
+        options = {"threads": args.threads} if args.threads else {}
+        s = run_act(
+            loc,
+            args.policy,
+            args.out,
+            shapes,
+            args.size / 1000.0,
+            args.trials,
+            args.seed,
+            options,
+            progress=not args.no_progress,
+            time_limit_s=args.time_limit,
+            skill=args.skill,
+        )
     a = s["all"]
     return (
         f"vision {100 * a['vision_success']:.1f} %, sampled +-8 mm/+-12 deg "
@@ -280,17 +307,18 @@ def _act(args) -> str:
 
 
 def _figures(args) -> str:
-    from mjx_peg.vision.dataset import split_config
+    from mjx_peg.vision.dataset import split_items
     from mjx_peg.vision.figures import FIGURES, write_figures
     from mjx_peg.vision.localizer import Localizer
 
     outdir.check_apart(args.out, {"--model": args.model, "--data": args.data})
     loc = Localizer.load(args.model)
-    split_config(args.data)
-    outdir.refuse_or_move([args.out / name for name in FIGURES], args.force, _note)
-    outdir.prepare_dir(args.out)
-    _warn_gl()
-    paths = write_figures(loc, args.data, args.out)
+    split_items(args.data)
+    with outdir.exclusive(args.out):
+        outdir.refuse_or_move([args.out / name for name in FIGURES], args.force, _note)
+        outdir.prepare_dir(args.out)
+        _warn_gl()
+        paths = write_figures(loc, args.data, args.out)
     return "wrote " + ", ".join(str(p) for p in paths)
 
 

@@ -21,6 +21,7 @@ Label (JSON, SI units, world = robot base frame):
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjx_peg import outdir
+from mjx_peg import inputs, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import OutDir, write_json
 from mjx_peg.vision.camera import CameraCalibration
@@ -49,6 +50,8 @@ SCHEMA = "mjx-peg-vision-split"
 
 
 MANIFEST = "manifest.json"
+MAX_IMAGE_BYTES = 256 * 2**20  # an image file
+MAX_IMAGE_PIXELS = 16_384**2  # width x height
 
 
 def yaw_period(shape: str) -> float:
@@ -149,12 +152,17 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise UsageError(f"image {path} does not exist")
+    data = inputs.read_bytes(path, MAX_IMAGE_BYTES)  # a regular file: a FIFO never blocks
     try:
-        with Image.open(path) as im:
+        with Image.open(io.BytesIO(data)) as im:
+            if im.width * im.height > MAX_IMAGE_PIXELS:
+                raise UsageError(f"image {path} is {im.width} x {im.height} px, too large")
             return np.asarray(im.convert("RGB"), dtype=np.uint8)
-    except (OSError, UnidentifiedImageError):
+    except (OSError, UnidentifiedImageError, Image.DecompressionBombError, ValueError) as e:
+        if isinstance(e, UsageError):
+            raise
         raise UsageError(f"cannot read image {path}: not an image file") from None
 
 
@@ -241,9 +249,10 @@ def split_config(split_dir) -> SplitConfig:
     path = Path(split_dir) / MANIFEST
     if not path.is_file():
         raise UsageError(f"{split_dir} holds no {MANIFEST}: not a vision split")
+    doc = inputs.read_json(path, "a vision split manifest")
     try:
-        return SplitConfig(**_recorded(json.loads(path.read_text())))
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return SplitConfig(**_recorded(doc))
+    except (ValueError, KeyError, TypeError, AttributeError):
         raise UsageError(f"{path} is not a vision split manifest") from None
 
 
@@ -258,6 +267,44 @@ def check_trainable(config: SplitConfig, flag: str) -> None:
         )
 
 
+def _number(value) -> bool:
+    return type(value) in (int, float) and math.isfinite(value)
+
+
+def label_problem(label) -> str | None:
+    """What makes `label` (one image's JSON) unusable, or None: the fields the localizer's
+    training, evaluation and figures read, with their types and ranges."""
+    if not isinstance(label, dict):
+        return "not a JSON object"
+    board = label.get("board")
+    if not isinstance(board, dict):
+        return "board is not an object"
+    if board.get("shape") not in constants.SHAPES:
+        return f"board.shape is not one of {', '.join(constants.SHAPES)}"
+    if not all(_number(board.get(k)) for k in ("size", "x", "y", "yaw")) or board["size"] <= 0:
+        return "board.size, x, y and yaw are not numbers (size > 0)"
+    for key, names in (("shape_class", SHAPE_CLASSES), ("size_class", SIZES_MM)):
+        index = label.get(key)  # null: a part outside the localizer's classes
+        if index is not None and (type(index) is not int or not 0 <= index < len(names)):
+            return f"{key} is not null or an index below {len(names)}"
+    if label.get("yaw_mod") is not None and not _number(label["yaw_mod"]):
+        return "yaw_mod is not a number"
+    px = label.get("hole_px")
+    if not (isinstance(px, list) and len(px) == 2 and all(_number(v) for v in px)):
+        return "hole_px is not two numbers"
+    view = label.get("view")
+    if not (isinstance(view, dict) and isinstance(view.get("distractors"), list)):
+        return "view is not an object with distractors"
+    if not (isinstance(view.get("table"), dict) and isinstance(view["table"].get("texture"), str)):
+        return "view.table.texture is not a name"
+    try:
+        CameraCalibration.from_json(label.get("calibration"))
+        CameraCalibration.from_json(view.get("camera_true"))
+    except UsageError as e:
+        return str(e)
+    return None
+
+
 def split_items(split_dir) -> list[tuple[Path, dict]]:
     """(png path, label) of every finished image of a split, in index order."""
     split_dir = Path(split_dir)
@@ -265,11 +312,11 @@ def split_items(split_dir) -> list[tuple[Path, dict]]:
     items = []
     for k in range(config.count):
         label_path = split_dir / f"{k:06d}.json"
-        if label_path.is_file():
-            try:
-                label = json.loads(label_path.read_text())
-            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise UsageError(f"{label_path} is not a label file ({exc})") from None
+        if label_path.exists():
+            label = inputs.read_json(label_path, "a label file")
+            why = label_problem(label)
+            if why:
+                raise UsageError(f"{label_path} is not a label file ({why})")
             items.append((split_dir / f"{k:06d}.png", label))
     if not items:
         raise UsageError(f"{split_dir} holds no rendered images yet")

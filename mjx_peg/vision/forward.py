@@ -41,6 +41,58 @@ DEFAULT_ARCH = {
 }
 
 
+MAX_FEATURES, MAX_STRIDE, MAX_LAYERS = 1024, 4, 16  # an architecture larger than this is refused
+
+
+def _layers(value, what: str, pairs: bool) -> list:
+    ok = isinstance(value, list) and len(value) <= MAX_LAYERS
+    for item in value if ok else ():
+        if pairs:
+            ok = ok and isinstance(item, list) and len(item) == 2
+            ok = ok and all(type(v) is int for v in item)
+            ok = ok and 1 <= item[0] <= MAX_FEATURES and 1 <= item[1] <= MAX_STRIDE
+        else:
+            ok = ok and type(item) is int and 1 <= item <= MAX_FEATURES
+    if not ok:
+        form = "[features, stride] pairs" if pairs else "widths"
+        raise ValueError(f"{what} is not a list of at most {MAX_LAYERS} {form}")
+    return value
+
+
+def param_shapes(arch, fine_size: int) -> dict[str, tuple[int, ...]]:
+    """{name: shape} of every array the forward passes read for the architecture `arch` (the
+    JSON form of DEFAULT_ARCH) and fine views of fine_size px; ValueError if `arch` is not
+    one."""
+    if not isinstance(arch, dict) or not all(
+        isinstance(arch.get(k), dict) for k in ("detector", "regressor")
+    ):
+        raise ValueError("arch is not {detector: {...}, regressor: {...}}")
+    shapes, channels = {}, 3
+    for i, (features, _) in enumerate(
+        _layers(arch["detector"].get("convs"), "detector.convs", True)
+    ):
+        shapes[f"detector/conv{i}/kernel"] = (3, 3, channels, features)
+        shapes[f"detector/conv{i}/bias"] = (features,)
+        channels = features
+    shapes["detector/head/kernel"] = (1, 1, channels, DETECTOR_HEAD)
+    shapes["detector/head/bias"] = (DETECTOR_HEAD,)
+    channels, side = 3, fine_size
+    for i, (features, stride) in enumerate(
+        _layers(arch["regressor"].get("convs"), "regressor.convs", True)
+    ):
+        shapes[f"regressor/conv{i}/kernel"] = (3, 3, channels, features)
+        shapes[f"regressor/conv{i}/bias"] = (features,)
+        channels, side = features, -(-side // stride)
+    width = side * side * channels
+    for i, units in enumerate(_layers(arch["regressor"].get("dense"), "regressor.dense", False)):
+        shapes[f"regressor/dense{i}/kernel"] = (width, units)
+        shapes[f"regressor/dense{i}/bias"] = (units,)
+        width = units
+    shapes["regressor/out/kernel"] = (width, FINE_OUTPUTS)
+    shapes["regressor/out/bias"] = (FINE_OUTPUTS,)
+    return shapes
+
+
 def conv2d(x: np.ndarray, kernel: np.ndarray, bias: np.ndarray, stride: int) -> np.ndarray:
     """(B, H', W', F) 'same'-padded (1 px) 3x3 or unpadded 1x1 convolution of (B, H, W, C)
     with kernel (k, k, C, F) (Flax's layout), stride `stride`."""

@@ -18,13 +18,13 @@ square in [0, 90) deg, triangle in [-15, 105) deg; a circle's yaw means nothing 
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from pathlib import Path
 
 import numpy as np
 
+from mjx_peg import inputs
 from mjx_peg.errors import UsageError
 from mjx_peg.outdir import write_json, write_npz
 from mjx_peg.robot.runtime import HoleEstimate
@@ -55,6 +55,24 @@ def default_workspace() -> dict:
 
 class ModelError(UsageError):
     """A model directory that cannot be loaded (one line says why)."""
+
+
+def _check_workspace(ws) -> None:
+    """ValueError unless `ws` is None or a workspace of `default_workspace`'s form."""
+    if ws is None:
+        return
+    if not isinstance(ws, dict):
+        raise ValueError("workspace is not an object")
+    for name in ("radius_m", "angle_rad"):
+        pair = ws.get(name)
+        if not (isinstance(pair, list) and len(pair) == 2 and all(_finite(v) for v in pair)):
+            raise ValueError(f"workspace.{name} is not two numbers")
+    if not _finite(ws.get("margin_m")):
+        raise ValueError("workspace.margin_m is not a number")
+
+
+def _finite(value) -> bool:
+    return type(value) in (int, float) and math.isfinite(value)
 
 
 def yaw_from_encoding(shape_id: int, cos_sin4, cos_sin3) -> float:
@@ -112,17 +130,26 @@ class Localizer:
         """Read model.json + model.npz (allow_pickle=False); ModelError if unusable."""
         model_dir = Path(model_dir)
         jpath, npath = model_dir / MODEL_JSON, model_dir / MODEL_NPZ
-        if not (jpath.is_file() and npath.is_file()):
+        if not (jpath.exists() and npath.exists()):
             raise ModelError(f"{model_dir} holds no {MODEL_JSON} + {MODEL_NPZ}: train one first")
-        try:
-            config = json.loads(jpath.read_text())
-            with np.load(npath, allow_pickle=False) as npz:
-                params = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError) as exc:
-            raise ModelError(f"cannot read the localizer in {model_dir}: {exc}") from None
-        if config.get("schema") != SCHEMA or config.get("schema_version") != SCHEMA_VERSION:
+        what = "a localizer's model.json"
+        config = inputs.read_json(jpath, what, error=ModelError, allow_nan=True)
+        if not isinstance(config, dict) or config.get("schema") != SCHEMA:
+            raise ModelError(f"{jpath} is not an mjx-peg localizer")
+        if config.get("schema_version") != SCHEMA_VERSION:
             raise ModelError(f"{jpath} is not a version-{SCHEMA_VERSION} mjx-peg localizer")
-        return cls(config, params)
+        try:
+            views = ViewConfig.from_json(config["views"])
+            shapes = forward.param_shapes(config["arch"], views.fine_size)
+            _check_workspace(config.get("workspace"))
+            refine = config.get("refine", 2)
+            if type(refine) is not int or not 0 <= refine <= 10:
+                raise ValueError("refine is not a count in 0..10")
+        except (KeyError, TypeError, ValueError) as e:
+            why = f"it lacks {e}" if isinstance(e, KeyError) else " ".join(str(e).split())[:120]
+            raise ModelError(f"{jpath}: {why}") from None
+        members = {name: inputs.Member("f", shape) for name, shape in shapes.items()}
+        return cls(config, inputs.read_npz(npath, members, error=ModelError))
 
     def save(self, model_dir: str | os.PathLike) -> Path:
         """Write model.npz + model.json into model_dir, each atomically."""

@@ -38,8 +38,28 @@ class ViewConfig:
     fine_res: float = 0.00125
     plane_z: float = float(constants.HOLE_DEPTH)
 
+    def __post_init__(self):
+        import math
+
+        centre = self.coarse_centre
+        if not (
+            len(centre) == 2 and all(type(v) in (int, float) and math.isfinite(v) for v in centre)
+        ):
+            raise ValueError("views.coarse_centre is not two numbers")
+        for name in ("coarse_rows", "coarse_cols", "coarse_stride", "fine_size"):
+            value = getattr(self, name)
+            if type(value) is not int or not 1 <= value <= 4096:
+                raise ValueError(f"views.{name} is not a whole number of pixels in 1..4096")
+        for name in ("coarse_res", "fine_res", "plane_z"):
+            value = getattr(self, name)
+            if type(value) not in (int, float) or not (math.isfinite(value) and abs(value) < 10):
+                raise ValueError(f"views.{name} is not a length in metres")
+        if not (self.coarse_res > 0 and self.fine_res > 0):
+            raise ValueError("views: a resolution is not positive")
+
     @classmethod
     def from_json(cls, doc: dict) -> ViewConfig:
+        """The ViewConfig of its JSON form; ValueError or TypeError if it is not one."""
         doc = dict(doc)
         doc["coarse_centre"] = tuple(doc["coarse_centre"])
         return cls(**doc)

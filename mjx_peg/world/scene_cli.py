@@ -9,15 +9,13 @@ from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.world import gl
 from mjx_peg.world.constants import HOLE_SCALE, SHAPES
-from mjx_peg.world.mjcf import build_mjcf
-from mjx_peg.world.pose_solver import demo_pose
-from mjx_peg.world.scene import load_model
-from mjx_peg.world.task import HOLE_SCALE_HELP, hole_scale_of, parse_hole_scale
 
 PROG = "mjx-peg-scene"
 
 
 def _parse(argv) -> argparse.Namespace:
+    from mjx_peg.world.task import HOLE_SCALE_HELP, hole_scale_of, parse_hole_scale
+
     parser = cli.Parser(
         prog=PROG,
         description="Write the scene MJCF for one part (shape, size, hole scale) and a PNG of it.",
@@ -45,38 +43,44 @@ def _parse(argv) -> argparse.Namespace:
     )
     args = parser.parse_args(argv)
     args.size_mm = args.size
+    args.hole_scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
     return args
 
 
 @cli.entry(PROG)
 def main(argv=None) -> int:
     args = _parse(argv)
-    import mujoco  # after world.scene, which chooses MuJoCo's GL back-end
+    import mujoco  # after mjx_peg (world.gl), which chooses MuJoCo's GL back-end
 
     from mjx_peg.world import mujoco_log, render
+    from mjx_peg.world.mjcf import build_mjcf
+    from mjx_peg.world.pose_solver import demo_pose
+    from mjx_peg.world.scene import load_model
 
     mujoco_log.send_to(None)  # no MUJOCO_LOG.TXT in the working directory
     size = args.size_mm / 1000.0
-    scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
+    scale = args.hole_scale
     fit = "" if scale == HOLE_SCALE[args.shape] else f"_hole{scale:g}"
     stem = f"scene_{args.shape}_{args.size_mm:g}mm{fit}"
     xml_path, png_path = args.out / f"{stem}.xml", args.out / f"{stem}.png"
     # Everything is checked and made before --out is touched; nothing replaced without --force.
-    if args.out.is_dir() and not args.force:
-        outdir.refuse_or_move([xml_path, png_path], False)
-    xml = build_mjcf(args.shape, size, scale)
-    model = load_model(args.shape, size, scale)
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
-        names = ", ".join(model.camera(i).name for i in range(model.ncam))
-        raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")
-    render.check_backend()
-    outdir.prepare_dir(args.out)
-    outdir.refuse_or_move([xml_path, png_path], args.force, lambda text: cli.note(PROG, text))
-    if gl.fallback_note():
-        cli.note(PROG, f"warning: {gl.fallback_note()}")
-    rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
-    outdir.write_atomic(xml_path, xml)
-    outdir.write_atomic(png_path, lambda path: render.save_png(path, rgb))
+    with outdir.exclusive(args.out):
+        if args.out.is_dir() and not args.force:
+            outdir.refuse_or_move([xml_path, png_path], False)
+        xml = build_mjcf(args.shape, size, scale)
+        model = load_model(args.shape, size, scale)
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, args.camera) < 0:
+            names = ", ".join(model.camera(i).name for i in range(model.ncam))
+            raise UsageError(f"unknown camera {args.camera!r}: valid cameras are {names}")
+        render.check_backend()
+        outdir.prepare_dir(args.out)
+        outdir.refuse_or_move([xml_path, png_path], args.force, lambda text: cli.note(PROG, text))
+        if gl.fallback_note():
+            cli.note(PROG, f"warning: {gl.fallback_note()}")
+        rgb = render.render_rgb(model, demo_pose(model), args.camera, args.width, args.height)
+        outdir.write_all_atomic(
+            [(xml_path, xml), (png_path, lambda path: render.save_png(path, rgb))]
+        )
     print(xml_path)
     print(png_path)
     return 0

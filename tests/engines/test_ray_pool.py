@@ -101,16 +101,19 @@ def test_training_on_the_cluster_is_bit_identical(cluster, tmp_path):
     "extra, message",
     [
         (["--ray", "127.0.0.1:9"], "cannot reach the Ray cluster at 127.0.0.1:9"),
-        (["--ray", "nowhere"], "a Ray address is auto, local or HOST:PORT"),
+        (["--ray", "nowhere"], "--ray must be auto, local or HOST:PORT, got 'nowhere'"),
+        (["--ray", "127.0.0.1:\u00b2"], "--ray must end in a port 1..65535"),
+        (["--ray", "127.0.0.1:99999"], "--ray must end in a port 1..65535, got '127.0.0.1:99999'"),
         (["--ray", "--processes", "2"], "--ray runs one lane per cluster CPU: drop --processes"),
     ],
 )
 def test_bad_cluster_input_is_one_line(extra, message, tmp_path, capsys):
     ray_pool.shutdown()  # left, so that the address is checked (the cluster tests ran above)
-    assert eval_cli.main([*EVAL, *extra, "--out", str(tmp_path)]) == 2
+    out = tmp_path / "new" / "eval"
+    assert eval_cli.main([*EVAL, *extra, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
-    assert not (tmp_path / "grid.csv").exists()
+    assert list(tmp_path.iterdir()) == []  # neither --out, its parents nor a lock
 
 
 def test_without_ray_the_clis_work_and_ray_says_how_to_install(tmp_path):

@@ -12,7 +12,6 @@ import pytest
 
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError
-from mjx_peg.policy.export import save_policy
 from mjx_peg.robot import cli, ur5e_cli
 from mjx_peg.robot.runtime import HoleEstimate
 from mjx_peg.skill.baseline import baseline_params
@@ -91,20 +90,70 @@ def test_cli_real_arm_bad_input_is_one_line(argv, message, tmp_path, capsys):
     code = cli.main([*argv, "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and message in err and len(err.splitlines()) == 1, err
-    assert not (tmp_path / "out" / "ur5e_run.csv").exists()
+    assert not (tmp_path / "out").exists()  # nothing written before the input is accepted
 
 
-def test_cli_refuses_a_policy_trained_on_other_shapes(tmp_path, capsys):
-    rng = np.random.default_rng(0)
-    layers = [(rng.normal(size=(8, 16)) * 0.3, np.zeros(16)),
-              (rng.normal(size=(16, 38)) * 0.3, np.zeros(38))]  # fmt: skip
-    config = {"task": {"shapes": ["circle", "square"]}}
-    save_policy(tmp_path / "p", layers=layers, obs_mean=np.zeros(8), obs_std=np.ones(8),
-                config=config)  # fmt: skip
-    argv = ["--dry-run", "--policy", str(tmp_path / "p"), "--hole", "450,0,0"]
-    assert cli.main([*argv, "--shape", "triangle"]) == 2
-    assert "was trained on circle, square, not triangle" in capsys.readouterr().err
-    assert cli.main([*argv, "--shape", "circle"]) == 0
+@pytest.mark.parametrize(
+    "mode",
+    [
+        ["--dry-run"],
+        ["--rehearse"],
+        ["--shadow", "--robot-ip", "127.0.0.1"],
+        ["--robot-ip", "127.0.0.1"],
+    ],  # fmt: skip
+)
+@pytest.mark.parametrize(
+    "policy, part, message",
+    [
+        (
+            "transfer",
+            ["--shape", "circle"],
+            "--policy transfer was trained on triangle, not circle",
+        ),
+        ("paper", ["--shape", "triangle"], "was trained on circle, square, not triangle"),
+        ("paper", ["--shape", "circle", "--size", "25"], "trained at S = 50 mm, not 25 mm"),
+    ],
+)
+def test_cli_refuses_a_shipped_policy_on_a_part_it_was_not_trained_for(
+    mode, policy, part, message, tmp_path, capsys
+):
+    """The shipped manifests as written (config.shapes, config.size_mm), on every real-arm
+    path, before a plan is printed, a connection tried or anything written."""
+    argv = [*mode, "--policy", policy, *part, "--hole", "450,-120,30"]
+    assert cli.main([*argv, "--out", str(tmp_path / "out")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and message in captured.err and len(captured.err.splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_runs_a_shipped_policy_on_the_part_it_was_trained_for(capsys):
+    argv = ["--dry-run", "--policy", "transfer", "--shape", "triangle", "--hole", "450,-120,30"]
+    assert cli.main(argv) == 0
+    assert "nothing was connected or moved" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("mode", [[], ["--rehearse", "--hole", "450,-120,30"]])
+def test_cli_never_writes_into_the_folder_of_the_policy_it_reads(
+    mode, tmp_path, monkeypatch, capsys
+):
+    """--out is compared with --policy as resolved folders: a shipped policy's name, a link to
+    its folder and a relative path to it are all the same folder."""
+    import shutil
+
+    from mjx_peg.policy import shipped
+
+    copy = tmp_path / "policies"
+    shutil.copytree(shipped.SHIPPED_DIR / "paper", copy / "paper")
+    monkeypatch.setattr(shipped, "SHIPPED_DIR", copy)
+    (tmp_path / "link").symlink_to(copy / "paper")
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in (copy / "paper").iterdir())
+    for out in ("link", "policies/paper", str(copy / "paper"), "policies"):
+        argv = [*mode, "--policy", "paper", "--shape", "circle", "--trials", "1", "--out", out]
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert "an output never replaces an input" in err and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in (copy / "paper").iterdir()) == before
 
 
 def test_without_ur_rtde_the_package_imports_and_the_cli_says_how_to_install(tmp_path):

@@ -1,0 +1,95 @@
+"""Ctrl-C and SIGTERM at any instant (`mjx_peg/signals.py`): one line on stderr, exit 130 (143),
+whether the command is importing JAX, parsing or running.
+
+The signal goes to the command's whole process group, as a terminal's Ctrl-C does. The
+commands start with SIGINT at its default (a test suite run as a background job has it
+ignored, and an ignored SIGINT stays ignored). An instant is counted from the start of the
+process, or from the moment the program's own code took the signals if that is later: until
+then the signal meets the interpreter's own start-up (its `site` import), not this package.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mjx_peg import signals
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+
+
+def _commands(tmp: Path) -> dict[str, list[str]]:
+    py = sys.executable
+    return {
+        "train.py": [py, "train.py", "--trials", "48", "--num-envs", "8", "--time-limit", "1",
+                     "--no-progress", "--out", str(tmp / "train")],
+        "eval.py": [py, "eval.py", "--policy", "baseline", "--grid", "custom", "--linear-mm", "1",
+                    "--angular-deg", "1", "--trials", "8", "--no-progress", "--out",
+                    str(tmp / "eval")],
+        "mjx-peg-baseline": [str(BIN / "mjx-peg-baseline"), "--trials", "20"],
+        "python -m mjx_peg.robot": [py, "-m", "mjx_peg.robot", "--trials", "5", "--no-progress",
+                                    "--out", str(tmp / "robot")],
+        "mjx-peg-vision": [str(BIN / "mjx-peg-vision"), "render", "--out", str(tmp / "split"),
+                           "--count", "50", "--width", "64", "--height", "64", "--no-progress"],
+        "mjx-peg-demo": [str(BIN / "mjx-peg-demo"), "--frames", "0", "--out", str(tmp / "demo")],
+    }  # fmt: skip
+
+
+def _stop(command: list[str], at_s: float, signum: int) -> tuple[int, list[str]]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "JAX_PLATFORMS": "cpu"}
+    start = time.monotonic()
+    child = subprocess.Popen(
+        command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        text=True, start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    while not signals.taken(child.pid) and child.poll() is None:
+        time.sleep(0.002)
+    time.sleep(max(0.0, at_s - (time.monotonic() - start)))
+    os.killpg(child.pid, signum)
+    _, err = child.communicate(timeout=120)
+    return child.returncode, [line for line in err.splitlines() if line.strip()]
+
+
+@pytest.mark.slow
+@pytest.mark.serial
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc (Linux)")
+@pytest.mark.parametrize("at_s", [0.1, 0.5, 1.5])
+@pytest.mark.parametrize("prog", list(_commands(Path("/"))))
+def test_ctrl_c_at_any_instant_is_one_line_and_130(prog, at_s, tmp_path):
+    code, lines = _stop(_commands(tmp_path)[prog], at_s, signal.SIGINT)
+    assert code == 130 and len(lines) == 1 and lines[0].startswith(prog), (code, lines)
+    assert "interrupted" in lines[0]
+
+
+@pytest.mark.slow
+@pytest.mark.serial
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc (Linux)")
+@pytest.mark.parametrize("prog", ["train.py", "eval.py", "mjx-peg-vision"])
+def test_sigterm_is_one_line_and_143(prog, tmp_path):
+    code, lines = _stop(_commands(tmp_path)[prog], 1.5, signal.SIGTERM)
+    assert code == 143 and len(lines) == 1 and lines[0].startswith(prog), (code, lines)
+
+
+@pytest.mark.parametrize(
+    "argv, program",
+    [
+        (["/usr/bin/python3", "/elsewhere/train.py"], None),  # not the one beside the package
+        (["/usr/bin/python3", str(ROOT / "train.py"), "--seed", "1"], "train.py"),
+        (["/usr/bin/python3", "-X", "importtime", str(ROOT / "eval.py")], "eval.py"),
+        (["python", "-m", "mjx_peg.robot", "--dry-run"], "python -m mjx_peg.robot"),
+        (["python", "-m", "pytest", "tests"], None),
+        (["/venv/bin/python3.11", "/venv/bin/mjx-peg-vision", "render"], "mjx-peg-vision"),
+        (["python", "-c", "from multiprocessing.spawn import spawn_main", "train.py"], None),
+    ],
+)
+def test_a_program_of_the_package_is_told_by_its_command_line(argv, program, monkeypatch):
+    monkeypatch.setattr(sys, "orig_argv", argv)
+    assert signals.program() == program
