@@ -13,6 +13,17 @@ class UsageError(ValueError):
     """A bad input the caller can correct (its message says which and how)."""
 
 
+def validate_fields(owner: str, validate) -> None:
+    """Run `validate()`; a TypeError or ValueError it raises that is not a UsageError (a field
+    of another type, as a hand-edited config.json holds) becomes one naming `owner`."""
+    try:
+        validate()
+    except UsageError:
+        raise
+    except (TypeError, ValueError) as e:
+        raise UsageError(f"{owner}: a field has the wrong type ({e})") from None
+
+
 def shown_path(path, limit: int = 120) -> str:
     """`path` as text, its middle cut out if longer than `limit` characters."""
     text = str(path)

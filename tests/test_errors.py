@@ -7,7 +7,7 @@ import errno
 
 import pytest
 
-from mjx_peg.errors import UsageError, message
+from mjx_peg.errors import UsageError, message, validate_fields
 
 
 def test_a_usage_error_is_a_value_error():
@@ -32,3 +32,17 @@ def test_a_usage_error_is_a_value_error():
 )  # fmt: skip
 def test_one_line_for_any_error(error, line):
     assert message(error) == line
+
+
+def test_validate_fields_names_the_owner_of_a_field_of_another_type():
+    def bad_type():
+        return 1.0 < "2"  # a TypeError, as a string where a number belongs raises
+
+    def bad_value():
+        raise UsageError("--trials must be positive")
+
+    with pytest.raises(UsageError, match=r"^TrainConfig: a field has the wrong type \("):
+        validate_fields("TrainConfig", bad_type)
+    with pytest.raises(UsageError, match="^--trials must be positive$"):
+        validate_fields("TrainConfig", bad_value)
+    assert validate_fields("TrainConfig", lambda: None) is None

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.errors import UsageError
+from mjx_peg.errors import UsageError, validate_fields
 from mjx_peg.skill.search import SkillConfig, constants_record, named_skill
 from mjx_peg.world.constants import GRASP_MODELS
 from mjx_peg.world.task import SHAPES, TaskConfig, TrialSpec, sample_trials
@@ -78,12 +78,7 @@ class EvalConfig:
     hole_scale: float | str | None = None
 
     def __post_init__(self):
-        try:
-            self._validate()
-        except (TypeError, ValueError) as e:  # a field of another type (a config.json's)
-            if isinstance(e, UsageError):
-                raise
-            raise UsageError(f"EvalConfig: a field has the wrong type ({e})") from None
+        validate_fields("EvalConfig", self._validate)
 
     def _validate(self):
         if self.grid not in GRIDS:

@@ -23,7 +23,7 @@ import numpy as np
 from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
-from mjx_peg.errors import UsageError
+from mjx_peg.errors import UsageError, validate_fields
 from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import N_LEARNED, N_PARAMS
@@ -136,12 +136,7 @@ class TrainConfig:
     observation: str = DEFAULT_LAYOUT
 
     def __post_init__(self):
-        try:
-            self._validate()
-        except (TypeError, ValueError) as e:  # a field of another type (a config.json's)
-            if isinstance(e, UsageError):
-                raise
-            raise UsageError(f"TrainConfig: a field has the wrong type ({e})") from None
+        validate_fields("TrainConfig", self._validate)
 
     def _validate(self):
         shapes = (self.shapes,) if isinstance(self.shapes, str) else tuple(self.shapes)
