@@ -16,7 +16,7 @@ PROG = "mjx-peg-baseline"
 def main(argv=None) -> int:
     """Success and time of the hand-tuned baseline per shape at given errors."""
     from mjx_peg.engines import ENGINES
-    from mjx_peg.world.task import HOLE_SCALE_HELP, parse_hole_scale
+    from mjx_peg.world.parts import HOLE_SCALE_HELP, parse_hole_scale
 
     p = cli.Parser(prog=PROG, description=main.__doc__)
     p.add_argument(

@@ -38,7 +38,7 @@ _DEFAULTS = {
 
 def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.demo import MAX_FRAMES, OUTPUTS
-    from mjx_peg.world.task import HOLE_SCALE_HELP
+    from mjx_peg.world.parts import HOLE_SCALE_HELP
 
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     d = _DEFAULTS
@@ -109,8 +109,8 @@ def trial_from_args(args):
     """(one spec, its (1, 38) controller vector, trial config, label) from the trial options."""
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.policy.export import policy_skill
-    from mjx_peg.world.parts import fit_text
-    from mjx_peg.world.task import TaskConfig, parse_hole_scale, sample_trials
+    from mjx_peg.world.parts import fit_text, parse_hole_scale
+    from mjx_peg.world.task import TaskConfig, sample_trials
 
     for dest, value in _DEFAULTS.items():
         if getattr(args, dest) is None:

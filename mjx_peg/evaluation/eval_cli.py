@@ -39,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
-    from mjx_peg.world.task import HOLE_SCALE_HELP
+    from mjx_peg.world.parts import HOLE_SCALE_HELP
 
     p = cli.Parser(
         prog=PROG,
@@ -154,7 +154,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
     from mjx_peg.evaluation.config import MAX_ERROR, EvalConfig, grid_axes
     from mjx_peg.policy.export import choose_skill
     from mjx_peg.world.constants import SHAPES
-    from mjx_peg.world.task import parse_hole_scale
+    from mjx_peg.world.parts import parse_hole_scale
 
     linear = None if args.linear_mm is None else cli.parse_ranges(args.linear_mm, "--linear-mm")
     angular = (

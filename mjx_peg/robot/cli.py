@@ -42,7 +42,7 @@ SKILL_FILE = "skill.json"  # the skill the runs ran: {"name", "constants"}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mjx_peg.world.task import HOLE_SCALE_HELP
+    from mjx_peg.world.parts import HOLE_SCALE_HELP
 
     p = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument(
@@ -148,7 +148,8 @@ def command_steps(hz: float, time_limit: float = math.inf) -> int:
 
 
 def _setup(args):
-    from mjx_peg.world.task import TaskConfig, parse_hole_scale
+    from mjx_peg.world.parts import parse_hole_scale
+    from mjx_peg.world.task import TaskConfig
 
     steps = command_steps(args.command_hz, args.time_limit)
     task = TaskConfig.from_mm_deg((args.shape,), args.size, args.linear_mm, args.angular_deg,

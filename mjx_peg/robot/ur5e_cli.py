@@ -34,14 +34,8 @@ from mjx_peg.robot.ur5e import PERIOD_S, UR5eArm, UR5eStop, Workspace, connect
 from mjx_peg.skill import dmp
 from mjx_peg.skill.control_step import start_state
 from mjx_peg.world import constants
-from mjx_peg.world.parts import fit_text
-from mjx_peg.world.task import (
-    TaskConfig,
-    feasible_configuration,
-    goal_pose,
-    hole_scale_of,
-    parse_hole_scale,
-)
+from mjx_peg.world.parts import fit_text, hole_scale_of, parse_hole_scale
+from mjx_peg.world.task import TaskConfig, feasible_configuration, goal_pose
 
 START_HEIGHT = 0.06  # m: the tip's start above the board top (the sampler's 40-80 mm, centred)
 MOVE_SPEED, MOVE_ACCEL = 0.25, 0.5  # rad/s, rad/s^2: moveJ to the start

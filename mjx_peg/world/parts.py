@@ -1,4 +1,4 @@
-"""The family of parts: each part's cross-section, size and hole clearance, as geometry.
+"""The family of parts: each part's cross-section, size and hole clearance.
 
 A part is (shape, size S, hole scale). The shapes are `constants.SHAPES`, each with what its
 characteristic size S measures: circle diameter D; square and triangle (equilateral) edge L;
@@ -11,7 +11,10 @@ The hole's clearance is the hole scale, the hole's size over the peg's: the hole
 section scaled by it about the axis (the round hole is a polygon of boxes whose inscribed
 diameter is hole_scale D). The paper's fits are 1.03 D round and 1.08 L for a section with
 corners (section 5); the hexagon and the rectangle have corners and take 1.08; tight fits are
-1.01 D and 1.02 S (`constants.HOLE_SCALE`, `TIGHT_HOLE_SCALE`).
+1.01 D and 1.02 S (`constants.HOLE_SCALE`, `TIGHT_HOLE_SCALE`). A TaskConfig and the command
+lines name clearances by a fit's name, a number, a (low, high) range or a mapping by shape
+(`hole_scale_ranges`, `parse_hole_scale`); a range draws from evenly spaced values at most
+`constants.HOLE_SCALE_STEP` apart (`hole_scale_values`).
 
 The hole is HOLE_DEPTH (the paper's 80 mm) deep for every part: it is the paper's board, and
 the skill measures its depths from the hole's entrance, so a deeper or shallower board would
@@ -26,14 +29,17 @@ and orientations: `mjcf.py`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from mjx_peg.errors import UsageError
 from mjx_peg.world.constants import (
     CIRCLE_SIDES,
+    HOLE_FITS,
     HOLE_SCALE,
     HOLE_SCALE_RANGE,
+    HOLE_SCALE_STEP,
     HOLE_SIDES,
     SHAPES,
 )
@@ -74,6 +80,104 @@ def fit_text(shape: str, hole_scale: float) -> str:
     """What the command lines add to a part's name: " (hole 1.02 S)" for a hole scale other than
     the shape's paper fit, nothing for that fit."""
     return "" if float(hole_scale) == HOLE_SCALE[shape] else f" (hole {float(hole_scale):g} S)"
+
+
+HoleScaleRanges = tuple[tuple[str, float, float], ...]
+
+
+def hole_scale_ranges(value) -> HoleScaleRanges:
+    """((shape, low, high), ...) in SHAPES order: the hole scales (hole size / peg size) a
+    TaskConfig draws for the shapes it names; a shape not named takes its paper fit.
+
+    `value`: None (every shape its paper fit, `constants.HOLE_SCALE`); a fit's name in
+    `constants.HOLE_FITS` ("paper", "tight"); a number or a (low, high) range for every shape; a
+    mapping shape -> number or range; or this function's own output.
+    """
+    if value is None or (isinstance(value, Sequence) and not isinstance(value, str) and not value):
+        return ()
+    if isinstance(value, str):
+        if value not in HOLE_FITS:
+            raise UsageError(
+                f"unknown hole fit {value!r}: choose from {', '.join(HOLE_FITS)}, or give a number"
+            )
+        value = HOLE_FITS[value]
+    if isinstance(value, Mapping):
+        items = list(value.items())
+    elif (
+        isinstance(value, Sequence)
+        and value
+        and all(isinstance(v, Sequence) and not isinstance(v, str) and len(v) == 3 for v in value)
+    ):
+        items = [(v[0], v[1:]) for v in value]
+    else:
+        items = [(shape, value) for shape in SHAPES]
+    ranges = {}
+    for shape, scale in items:
+        if shape not in SHAPES:
+            raise UsageError(f"TaskConfig.hole_scale names an unknown shape {shape!r}")
+        lo, hi = _scale_pair(scale if isinstance(scale, Sequence) else (scale, scale))
+        if lo < HOLE_SCALE_RANGE[0] or hi > HOLE_SCALE_RANGE[1]:
+            raise UsageError(
+                f"TaskConfig.hole_scale of the {shape} must lie in [{HOLE_SCALE_RANGE[0]:g}, "
+                f"{HOLE_SCALE_RANGE[1]:g}] (hole size / peg size), got ({lo:g}, {hi:g})"
+            )
+        ranges[shape] = (lo, hi)
+    return tuple((s, *ranges[s]) for s in SHAPES if s in ranges)
+
+
+def _scale_pair(value) -> tuple[float, float]:
+    """A (low, high) pair of finite hole scales, low <= high (UsageError otherwise)."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise UsageError(
+            f"TaskConfig.hole_scale must be a (low, high) pair, got {value!r}"
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise UsageError(f"TaskConfig.hole_scale must be finite with low <= high, got ({lo}, {hi})")
+    return lo, hi
+
+
+# The command lines' --hole-scale (`parse_hole_scale`).
+HOLE_SCALE_HELP = (
+    "the hole's clearance, hole size / peg size, of every shape: paper (the paper's fits, 1.03 D "
+    "round and 1.08 S with corners; default), tight (1.01 D, 1.02 S) or a number in "
+    f"[{HOLE_SCALE_RANGE[0]:g}, {HOLE_SCALE_RANGE[1]:g}]"
+)
+
+
+def parse_hole_scale(text: str) -> str | float:
+    """A command line's hole scale: a fit's name (`constants.HOLE_FITS`) or a number in
+    HOLE_SCALE_RANGE (UsageError otherwise)."""
+    if text in HOLE_FITS:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    lo, hi = HOLE_SCALE_RANGE
+    if not lo <= value <= hi:
+        raise UsageError(
+            f"--hole-scale must be {' or '.join(HOLE_FITS)} or a number in [{lo:g}, {hi:g}] "
+            f"(hole size / peg size), got {text!r}"
+        )
+    return value
+
+
+def hole_scale_of(shape: str, value: str | float | None) -> float:
+    """The one hole scale that `value` (None or "paper": the paper's fit; "tight"; a number)
+    gives `shape`."""
+    value = "paper" if value is None else value
+    lo, hi = dict((s, (a, b)) for s, a, b in hole_scale_ranges(value)).get(shape, (None, None))
+    if lo is None or lo != hi:
+        raise UsageError(f"hole scale {value!r} names no single value for the {shape}")
+    return lo
+
+
+def hole_scale_values(low: float, high: float) -> np.ndarray:
+    """The evenly spaced hole scales a (low, high) range draws from: both ends, at most
+    HOLE_SCALE_STEP apart (one value if low == high)."""
+    return np.linspace(low, high, int(math.ceil((high - low) / HOLE_SCALE_STEP - 1e-9)) + 1)
 
 
 def hole_walls(

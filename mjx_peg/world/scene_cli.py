@@ -14,7 +14,7 @@ PROG = "mjx-peg-scene"
 
 
 def _parse(argv) -> argparse.Namespace:
-    from mjx_peg.world.task import HOLE_SCALE_HELP, hole_scale_of, parse_hole_scale
+    from mjx_peg.world.parts import HOLE_SCALE_HELP, hole_scale_of, parse_hole_scale
 
     parser = cli.Parser(
         prog=PROG,

@@ -29,13 +29,12 @@ from mjx_peg.world.constants import (
     GOAL_HEIGHT,
     GRASP_MODELS,
     HOLE_DEPTH,
-    HOLE_FITS,
     HOLE_SCALE,
     HOLE_SCALE_RANGE,
-    HOLE_SCALE_STEP,
     PEG_LENGTH,
     SHAPES,
 )
+from mjx_peg.world.parts import HoleScaleRanges, hole_scale_ranges, hole_scale_values
 from mjx_peg.world.rotations import (
     matrix_from_quat,
     matrix_from_rotvec,
@@ -68,91 +67,6 @@ def _range(name: str, value, lo_min: float = -math.inf, positive: bool = False) 
     return lo, hi
 
 
-HoleScaleRanges = tuple[tuple[str, float, float], ...]
-
-
-def hole_scale_ranges(value) -> HoleScaleRanges:
-    """((shape, low, high), ...) in SHAPES order: the hole scales (hole size / peg size) a
-    TaskConfig draws for the shapes it names; a shape not named takes its paper fit.
-
-    `value`: None (every shape its paper fit, `constants.HOLE_SCALE`); a fit's name in
-    `constants.HOLE_FITS` ("paper", "tight"); a number or a (low, high) range for every shape; a
-    mapping shape -> number or range; or this function's own output.
-    """
-    if value is None or (isinstance(value, Sequence) and not isinstance(value, str) and not value):
-        return ()
-    if isinstance(value, str):
-        if value not in HOLE_FITS:
-            raise UsageError(
-                f"unknown hole fit {value!r}: choose from {', '.join(HOLE_FITS)}, or give a number"
-            )
-        value = HOLE_FITS[value]
-    if isinstance(value, Mapping):
-        items = list(value.items())
-    elif (
-        isinstance(value, Sequence)
-        and value
-        and all(isinstance(v, Sequence) and not isinstance(v, str) and len(v) == 3 for v in value)
-    ):
-        items = [(v[0], v[1:]) for v in value]
-    else:
-        items = [(shape, value) for shape in SHAPES]
-    ranges = {}
-    for shape, scale in items:
-        if shape not in SHAPES:
-            raise UsageError(f"TaskConfig.hole_scale names an unknown shape {shape!r}")
-        lo, hi = _range("hole_scale", scale if isinstance(scale, Sequence) else (scale, scale))
-        if lo < HOLE_SCALE_RANGE[0] or hi > HOLE_SCALE_RANGE[1]:
-            raise UsageError(
-                f"TaskConfig.hole_scale of the {shape} must lie in [{HOLE_SCALE_RANGE[0]:g}, "
-                f"{HOLE_SCALE_RANGE[1]:g}] (hole size / peg size), got ({lo:g}, {hi:g})"
-            )
-        ranges[shape] = (lo, hi)
-    return tuple((s, *ranges[s]) for s in SHAPES if s in ranges)
-
-
-# The command lines' --hole-scale (`parse_hole_scale`).
-HOLE_SCALE_HELP = (
-    "the hole's clearance, hole size / peg size, of every shape: paper (the paper's fits, 1.03 D "
-    "round and 1.08 S with corners; default), tight (1.01 D, 1.02 S) or a number in "
-    f"[{HOLE_SCALE_RANGE[0]:g}, {HOLE_SCALE_RANGE[1]:g}]"
-)
-
-
-def parse_hole_scale(text: str) -> str | float:
-    """A command line's hole scale: a fit's name (`constants.HOLE_FITS`) or a number in
-    HOLE_SCALE_RANGE (UsageError otherwise)."""
-    if text in HOLE_FITS:
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    lo, hi = HOLE_SCALE_RANGE
-    if not lo <= value <= hi:
-        raise UsageError(
-            f"--hole-scale must be {' or '.join(HOLE_FITS)} or a number in [{lo:g}, {hi:g}] "
-            f"(hole size / peg size), got {text!r}"
-        )
-    return value
-
-
-def hole_scale_of(shape: str, value: str | float | None) -> float:
-    """The one hole scale that `value` (None or "paper": the paper's fit; "tight"; a number)
-    gives `shape`."""
-    value = "paper" if value is None else value
-    lo, hi = dict((s, (a, b)) for s, a, b in hole_scale_ranges(value)).get(shape, (None, None))
-    if lo is None or lo != hi:
-        raise UsageError(f"hole scale {value!r} names no single value for the {shape}")
-    return lo
-
-
-def hole_scale_values(low: float, high: float) -> np.ndarray:
-    """The evenly spaced hole scales a (low, high) range draws from: both ends, at most
-    HOLE_SCALE_STEP apart (one value if low == high)."""
-    return np.linspace(low, high, int(math.ceil((high - low) / HOLE_SCALE_STEP - 1e-9)) + 1)
-
-
 @dataclasses.dataclass(frozen=True)
 class TaskConfig:
     """How trials are randomized. SI units: m, rad, s. Ranges are (low, high)."""
@@ -182,9 +96,9 @@ class TaskConfig:
     sensor_cutoff_scale: tuple[float, float] = (1.0, 1.0)
     sensor_noise_scale: tuple[float, float] = (1.0, 1.0)
     sensor_delay_offset: tuple[int, int] = (0, 0)
-    # The hole's clearance, hole size / peg size, per shape (`hole_scale_ranges`: None, a fit's
-    # name "paper" or "tight", a number or (low, high) range for every shape, or a mapping by
-    # shape); normalized to ((shape, low, high), ...); a shape not named takes its paper fit.
+    # The hole's clearance, hole size / peg size, per shape (`parts.hole_scale_ranges`: None, a
+    # fit's name "paper" or "tight", a number or (low, high) range for every shape, or a mapping
+    # by shape); normalized to ((shape, low, high), ...); a shape not named takes its paper fit.
     hole_scale: HoleScaleRanges = ()
     # Bound on kinematics.condition_number(q, PEG_LENGTH, "full") (6x6 tcp Jacobian, linear
     # rows in m, angular in rad) of the start and goal configurations. The default workspace
@@ -600,8 +514,8 @@ def sample_trials(
 
 def _hole_scales(config: TaskConfig, shape_id: np.ndarray, rng: np.random.Generator):
     """(B,) each trial's hole scale: its shape's fixed value, or one drawn uniformly from the
-    values of its range (`hole_scale_values`) from a child stream, spawned only then: trials with
-    fixed clearances are those of before the clearance was a parameter."""
+    values of its range (`parts.hole_scale_values`) from a child stream, spawned only then:
+    trials with fixed clearances are those of before the clearance was a parameter."""
     scales = np.zeros(len(shape_id))
     ranges = {SHAPES.index(s): config.hole_scale_range(s) for s in config.shapes}
     child = None

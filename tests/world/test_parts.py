@@ -178,6 +178,26 @@ def test_the_paper_fits_are_the_default_and_others_are_checked():
     assert 'model="mjx_peg_square_50mm_hole1.02"' in mjcf.build_mjcf("square", 0.05, 1.02)
 
 
+def test_hole_scales_parse_from_fits_numbers_and_ranges():
+    assert parts.hole_scale_ranges(None) == () and parts.hole_scale_ranges({"square": 1.05}) == (
+        ("square", 1.05, 1.05),
+    )
+    assert parts.hole_scale_ranges("tight")[0] == ("circle", 1.01, 1.01)
+    np.testing.assert_allclose(
+        parts.hole_scale_values(1.01, 1.03), [1.01, 1.015, 1.02, 1.025, 1.03]
+    )
+    assert (
+        parts.hole_scale_of("hexagon", "tight") == 1.02
+        and parts.hole_scale_of("circle", None) == 1.03
+    )
+    assert parts.parse_hole_scale("tight") == "tight" and parts.parse_hole_scale("1.04") == 1.04
+    for text in ("loose", "1.0", "2", "nan"):
+        with pytest.raises(ValueError, match="--hole-scale must be paper or tight or a number"):
+            parts.parse_hole_scale(text)
+    with pytest.raises(ValueError, match="hole scale 'tight'|no single value"):
+        parts.hole_scale_of("square", (1.02, 1.08))
+
+
 @pytest.mark.parametrize("shape", ["hexagon", "rectangle"])
 def test_the_baseline_inserts_a_new_part_from_zero_error(shape):
     """The hand-tuned numbers with the spiral skill on the C engine: a 50 mm hexagon or

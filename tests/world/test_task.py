@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from mjx_peg.world import constants, task
+from mjx_peg.world import constants, parts, task
 from mjx_peg.world import kinematics as kin
 from mjx_peg.world.rotations import rotvec_from_matrix, tool_down_rotation
 from mjx_peg.world.task import HOLE_DEPTH, PEG_LENGTH, SHAPES, TaskConfig, TrialSpec, sample_trials
@@ -312,15 +312,6 @@ def test_hole_scale_forms_normalize_to_ranges_per_shape():
     assert ranged.hole_scale_range("circle") == (1.03, 1.03)  # not named: the paper's fit
     assert TaskConfig(hole_scale=ranged.hole_scale) == ranged  # its own form reads back
     assert ranged.replace(shapes=("triangle",)).hole_scale_range("square") == (1.02, 1.08)
-    np.testing.assert_allclose(task.hole_scale_values(1.01, 1.03), [1.01, 1.015, 1.02, 1.025, 1.03])
-    assert (
-        task.hole_scale_of("hexagon", "tight") == 1.02
-        and task.hole_scale_of("circle", None) == 1.03
-    )
-    assert task.parse_hole_scale("tight") == "tight" and task.parse_hole_scale("1.04") == 1.04
-    for text in ("loose", "1.0", "2", "nan"):
-        with pytest.raises(ValueError, match="--hole-scale must be paper or tight or a number"):
-            task.parse_hole_scale(text)
 
 
 def test_bad_hole_scales_fail_with_one_line():
@@ -329,8 +320,6 @@ def test_bad_hole_scales_fail_with_one_line():
     _one_line_error("hole_scale of the square must lie", hole_scale={"square": (1.02, 1.5)})
     _one_line_error("names an unknown shape 'octagon'", hole_scale={"octagon": 1.05})
     _one_line_error("hole_scale must be finite with low <= high", hole_scale=(1.08, 1.02))
-    with pytest.raises(ValueError, match="hole scale 'tight'|no single value"):
-        task.hole_scale_of("square", (1.02, 1.08))
 
 
 def test_fixed_clearances_leave_the_draws_alone_and_ranges_draw_their_values():
@@ -351,7 +340,7 @@ def test_fixed_clearances_leave_the_draws_alone_and_ranges_draw_their_values():
             np.testing.assert_array_equal(getattr(ranged, name), value, err_msg=name)
     for shape, lo, hi in (("circle", 1.01, 1.03), ("square", 1.02, 1.08)):
         mine = ranged.hole_scale[ranged.shape_id == SHAPES.index(shape)]
-        assert set(np.round(mine, 9)) == set(np.round(task.hole_scale_values(lo, hi), 9))
+        assert set(np.round(mine, 9)) == set(np.round(parts.hole_scale_values(lo, hi), 9))
     rest = ~np.isin(ranged.shape_id, [0, 1])
     np.testing.assert_array_equal(ranged.hole_scale[rest], plain.hole_scale[rest])
 
