@@ -53,7 +53,8 @@ def test_a_generic_start_is_the_mid_range_controller_for_every_observation():
     assert np.max(np.abs(action)) < 0.05
     middle = np.asarray(vector_from_controller(controller_from_action(np.zeros(47))))
     vectors = np.asarray(controller_vector(action, None))
-    np.testing.assert_allclose(vectors[:, :2], np.broadcast_to(middle[:2], (64, 2)), rtol=0.02)
+    # |action| < 0.05 under the sigmoid map: k within 100^(0.05 / 4) = 1.059 of the middle
+    np.testing.assert_allclose(vectors[:, :2], np.broadcast_to(middle[:2], (64, 2)), rtol=0.06)
     assert middle[0] == pytest.approx(100.0) and middle[38] == pytest.approx(0.005)
 
 

@@ -156,7 +156,7 @@ def test_exploration_moves_the_baseline_under_the_centred_map_not_the_sigmoid_on
     step = np.zeros(38)
     step[[0, 2]] = -0.4
     centred = P.vector_from_controller(P.controller_from_centred_action(step, _centre()))
-    prior = prior_action(TrainConfig(action_map="sigmoid")).astype(np.float64)
+    prior = prior_action(TrainConfig(action_map="sigmoid", learn_search=False)).astype(np.float64)
     sigmoid_0 = P.vector_from_controller(P.controller_from_action(prior))
     sigmoid = P.vector_from_controller(P.controller_from_action(prior + step))
     centre = _centre()
