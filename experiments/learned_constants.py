@@ -12,6 +12,7 @@ to the start (log scale), one box per policy and shape. Prints the median ratio 
 from __future__ import annotations
 
 import argparse
+import pathlib
 
 import numpy as np
 
@@ -39,6 +40,7 @@ def main(argv=None) -> None:
     fig, ax = plt.subplots(figsize=(12, 5), dpi=120)
     width = 0.8 / (2 * len(args.policy))
     for k, path in enumerate(args.policy):
+        name = "/".join(pathlib.PurePath(path).parts[-2:])  # e.g. quick/seed-0
         policy = load_policy(path)
         config = TrainConfig.from_json(policy.manifest["config"])
         specs = sample_trials(config.task(), args.seed, args.trials)
@@ -56,7 +58,7 @@ def main(argv=None) -> None:
                 patch.set_facecolor(f"C{2 * k + j}")
                 patch.set_alpha(0.6)
             ax.plot([], [], color=f"C{2 * k + j}", lw=6, alpha=0.6,
-                    label=f"{path}, {SHAPES[shape_id]}")  # fmt: skip
+                    label=f"{name}, {SHAPES[shape_id]}")  # fmt: skip
             medians = np.median(ratio, axis=0)
             moved = (f"{LEARNED_NAMES[i]} x{m:.2f}" for i, m in zip(SHOWN, medians, strict=True))
             print(f"{path} {SHAPES[shape_id]}: " + ", ".join(moved))
