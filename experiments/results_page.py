@@ -335,6 +335,54 @@ def training_section() -> list[str]:
     return lines + table(header, rows) + ["", "Commands:", "", *cmds]
 
 
+LEARNING = "docs/design/data/learning"
+
+
+def learning_section() -> list[str]:
+    """The learning runs over seeds (docs/design/learning_from_scratch.md): each run's held-out
+    curve and its mean on the 1,500 trials at the paper's training errors, against its start."""
+    root = ROOT / LEARNING
+    if not root.exists():
+        return []
+    lines = [
+        "## Learning over seeds",
+        "",
+        "Runs that learn the skill's 47 numbers, one row per seed (files under "
+        f"`{LEARNING}/`; the question and the decisions: "
+        "`docs/design/learning_from_scratch.md`): the held-out success of the policy's mean (128 "
+        "fixed trials, 20 s) at the end, its first and last held-out points, and where measured "
+        "its mean on the 1,500 trials at ±8 mm / ±12 deg (seed 2, 60 s) against the hand-tuned "
+        "start on the same trials (`docs/results/contact/base812s2.csv`; McNemar).",
+        "",
+    ]
+    start = load(ROOT / RESULTS / "contact" / "base812s2.csv")
+    rows, cmds = [], {}
+    for folder in sorted(root.glob("*/seed-*")):
+        config = json.loads((folder / "config.json").read_text())
+        with open(folder / "eval.csv") as f:
+            held = list(csv.DictReader(f))
+        first, last = held[0], held[-1]
+        contact = root / "contact" / f"{folder.parent.name}-{folder.name}.csv"
+        cell = ""
+        if contact.exists():
+            run = load(contact)
+            lost, gained, p, change = paired(run, start, contact.name)
+            cell = (f"{pct(np.mean(run['success'] > 0.5))} %, {change:+.1f} ({lost} lost / "
+                    f"{gained} gained, p = {p:.2g})")  # fmt: skip
+        curve = (f"{pct(float(first['success_rate']))} % at {int(first['trials']):,} -> "
+                 f"{pct(float(last['success_rate']))} % at {int(last['trials']):,}")  # fmt: skip
+        rows.append([f"`{folder.parent.name}/{folder.name}`", config["prior"],
+                     f"{int(config['trials']):,}", curve, cell])  # fmt: skip
+        preset = "" if config["preset"] == "quick" else f" --preset {config['preset']}"
+        prior = "" if config["prior"] == "baseline" else f" --prior {config['prior']}"
+        name, every = folder.parent.name, config["eval_every"]
+        cmds[name] = (f"python train.py{preset}{prior} --seeds 0,1,2 --eval-every {every} "
+                      f"--out runs/{name}")  # fmt: skip
+    header = ["run", "start", "trials", "held-out success", "the 1,500 trials, against the start"]
+    listed = [f"- `{name}`: `{command}`" for name, command in cmds.items()]
+    return lines + table(header, rows) + ["", "Commands:", "", *listed]
+
+
 # --- contact sets ----------------------------------------------------------------------------
 
 
@@ -527,6 +575,8 @@ def page() -> str:
         "",
         *training_section(),
     ]
+    if part := learning_section():
+        lines += ["", *part]
     for section in (contact_section, zero_section, arm_section, vision_section):
         if part := section(made_by):
             lines += ["", *part]
