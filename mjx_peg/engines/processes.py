@@ -30,6 +30,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from multiprocessing import resource_tracker
 
 import numpy as np
 
@@ -102,7 +103,12 @@ def _while_workers_start():
     """While workers start: they import this package, never the caller's script (`spawn` would
     run a script again in every worker, and fail on one without a `__main__` guard), and they
     start with SIGINT blocked (a Ctrl-C sent to the whole process group while a worker is still
-    importing would print its traceback; the caller stops the workers)."""
+    importing would print its traceback; the caller stops the workers).
+
+    The queues' semaphores start multiprocessing's resource tracker on first use, and starting
+    it unblocks SIGINT in this thread when it is done; it is started here first, before SIGINT is
+    blocked, so the block holds while the workers are spawned."""
+    resource_tracker.ensure_running()
     main = sys.modules.get("__main__")
     saved = {k: getattr(main, k) for k in ("__file__", "__spec__") if hasattr(main, k)}
     blocked = threading.current_thread() is threading.main_thread()

@@ -79,3 +79,25 @@ def test_a_dead_worker_process_is_one_clear_error():
     with pytest.raises(RuntimeError, match="worker process of the CPU engine died"):
         mujoco_engine.run_on_cpu(specs, params, TrialConfig(time_limit_s=600.0), processes=2)
     assert time.monotonic() - start < 60.0
+
+
+def test_workers_are_spawned_with_sigint_blocked_in_a_fresh_process():
+    """The queues' first semaphore starts multiprocessing's resource tracker, which unblocks
+    SIGINT when it is started: in a fresh interpreter (no tracker yet) SIGINT is still blocked
+    after the pool and its queues are made, where its workers are spawned."""
+    import subprocess
+    import sys
+
+    code = (
+        "import signal\n"
+        "from mjx_peg.engines import processes\n"
+        "with processes._while_workers_start():\n"
+        "    processes._executor(1)\n"
+        "    print(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))\n"
+        "print(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))\n"
+        "processes.shutdown()\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert out.stdout.split() == ["True", "False"]
