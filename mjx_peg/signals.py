@@ -11,7 +11,8 @@ extension (JAX, MuJoCo) that a KeyboardInterrupt would cut in half, and crash or
 never continues. After it, the signal is raised in the main thread as KeyboardInterrupt
 (`Terminated` for SIGTERM), so that what is being written is finished or removed and worker
 processes are stopped; never inside an import or a garbage-collector callback (where Python
-would print and drop it, or leave a module half made): there it is raised again 20 ms later.
+would print and drop it, or leave a module half made) or while a child process is being started
+(it would be left without its instructions): there it is raised again 20 ms later.
 Running CPU-engine calls are asked to stop at once (`engines/interrupt.py`). Later signals of
 either kind, while the command unwinds, are ignored. A signal that was ignored when the process
 started (SIGINT in a background job) stays ignored.
@@ -50,13 +51,21 @@ def _in_main_thread() -> bool:
     return threading is None or threading.current_thread() is threading.main_thread()
 
 
+# multiprocessing's modules that start a child: interrupted between the child's start and the
+# preparation data it is sent, the child reads an empty pipe and prints EOFError's traceback
+_LAUNCHING = tuple(f"{os.sep}multiprocessing{os.sep}{name}.py"
+                   for name in ("popen_spawn_posix", "popen_forkserver", "popen_fork"))  # fmt: skip
+
+
 def _unsafe(frame) -> bool:
     """Whether raising in `frame` would be lost or leave something half made: inside an import,
-    a garbage-collector callback or a finalizer."""
+    a garbage-collector callback, a finalizer or the start of a child process."""
     callbacks = {getattr(cb, "__code__", None) for cb in gc.callbacks}
     while frame is not None:
         code = frame.f_code
         if code.co_filename.startswith("<frozen importlib") or code in callbacks:
+            return True
+        if code.co_filename.endswith(_LAUNCHING):
             return True
         if code.co_name == "__del__":
             return True

@@ -93,3 +93,19 @@ def test_sigterm_is_one_line_and_143(prog, tmp_path):
 def test_a_program_of_the_package_is_told_by_its_command_line(argv, program, monkeypatch):
     monkeypatch.setattr(sys, "orig_argv", argv)
     assert signals.program() == program
+
+
+def test_a_signal_waits_while_a_child_process_is_started_and_inside_an_import():
+    """Raised there, KeyboardInterrupt would leave a spawned child without its preparation data
+    (it prints EOFError's traceback) or a module half made: those frames are unsafe, others not."""
+    import multiprocessing.popen_spawn_posix as launching
+
+    def frame_in(filename: str):
+        scope = {}
+        exec(compile("import sys\nframe = sys._getframe()", filename, "exec"), scope)
+        return scope["frame"]
+
+    assert signals._unsafe(frame_in(launching.__file__))
+    assert signals._unsafe(frame_in("<frozen importlib._bootstrap>"))
+    assert not signals._unsafe(frame_in(__file__))
+    assert not signals._unsafe(sys._getframe())
