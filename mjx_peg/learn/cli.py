@@ -31,6 +31,20 @@ MAX_TRIALS = 10_000_000  # training budget (the longest run in the README: 98,30
 MAX_NUM_ENVS = 65_536  # trials per iteration
 
 
+def suite_parts(text: str) -> tuple:
+    """--parts: names of the suite's parts -> TrainConfig.parts (argparse's type)."""
+    from mjx_peg.world import family
+
+    names = [name for name in text.split(",") if name]
+    known = {p.name: p for p in family.SUITE}
+    unknown = [name for name in names if name not in known]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(
+            f"names of the suite's parts ({', '.join(known)}), got {text!r}"
+        )
+    return tuple((known[n].shape, known[n].size_mm, known[n].hole_scale) for n in names)
+
+
 def parser() -> argparse.ArgumentParser:
     from mjx_peg.engines import ENGINES
     from mjx_peg.learn.config import ACTION_MAPS, PRESETS, PRIORS
@@ -70,6 +84,13 @@ def parser() -> argparse.ArgumentParser:
         "--tensorboard",
         action="store_true",
         help="also write every metric to OUT/tensorboard (tensorboard --logdir OUT)",
+    )
+    p.add_argument(
+        "--parts",
+        type=suite_parts,
+        help="train on these parts of the suite (world/family.py, comma-separated, e.g. "
+        "triangle-60-tight), linear errors x S / 50 mm; default: the preset's (the family "
+        "preset: every trained part)",
     )
     p.add_argument("--num-envs", type=cli.integer(1, MAX_NUM_ENVS), help="trials per iteration")
     p.add_argument(
@@ -155,6 +176,8 @@ def resolve_config(args):
         "skill": args.skill,
         "eval_every": args.eval_every,
         "observation": args.observation,
+        "parts": args.parts,
+        "linear_per_size": True if args.parts else None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
     if args.fixed_skill:

@@ -8,6 +8,8 @@ an extension, skill/search.py; `--skill paper` trains the paper's skill as writt
   +-8 mm / +-12 deg, friction 0.2-0.9; 8,192 trials (the paper's curve levels off after ~8,000).
 - `transfer`: re-train a finished run (`--init-from RUN_DIR`) on the unseen triangle, same
   errors as `paper`, 800 trials (the paper's Fig. 9) in 20 iterations of 40.
+- `family`: the `paper` preset on the family of parts (world/family.py: the parts suite's trained
+  parts, five shapes, 10-80 mm, the paper's and tight fits), linear errors x S / 50 mm.
 The paper does not give its training time limit; we train with 20 s (a failed trial that has not
 settled costs the whole limit) and evaluate with the paper's 60 s.
 """
@@ -28,6 +30,7 @@ from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import N_LEARNED, N_PARAMS
 from mjx_peg.skill.search import LEARNED, SkillConfig, constants_record, named_skill
+from mjx_peg.world import family
 from mjx_peg.world.task import SHAPES, TaskConfig
 
 PRIORS = ("baseline", "none")
@@ -134,6 +137,12 @@ class TrainConfig:
     # its geometry, "names" by a one-hot of the paper's three shapes; config.json files without
     # it were "names" (file_versions)
     observation: str = DEFAULT_LAYOUT
+    # A family of parts (TaskConfig.parts): ((shape, size mm, hole scale), ...), each trial one
+    # drawn uniformly; shapes and size_mm then follow from it. Empty: shapes x size_mm at the
+    # paper's fits
+    parts: tuple[tuple[str, float, float], ...] = ()
+    # The linear errors x S / 50 mm (TaskConfig.linear_per_size)
+    linear_per_size: bool = False
 
     def __post_init__(self):
         validate_fields("TrainConfig", self._validate)
@@ -145,6 +154,16 @@ class TrainConfig:
                 raise UsageError(f"unknown shape {s!r}: choose from {', '.join(SHAPES)}")
         object.__setattr__(self, "shapes", shapes)
         object.__setattr__(self, "size_mm", tuple(float(s) for s in self.size_mm))
+        try:
+            parts = tuple((str(a), float(b), float(c)) for a, b, c in self.parts)
+        except (TypeError, ValueError):
+            raise UsageError(
+                f"parts holds (shape, size mm, hole scale) triples, got {self.parts!r}"
+            ) from None
+        object.__setattr__(self, "parts", parts)
+        if parts:
+            object.__setattr__(self, "shapes", tuple(dict.fromkeys(p[0] for p in parts)))
+            object.__setattr__(self, "size_mm", tuple(sorted({p[1] for p in parts})))
         object.__setattr__(self, "policy_hidden", tuple(int(h) for h in self.policy_hidden))
         object.__setattr__(self, "value_hidden", tuple(int(h) for h in self.value_hidden))
         for name, kind in (("sensor_cutoff_scale", float), ("sensor_noise_scale", float),
@@ -240,6 +259,8 @@ class TrainConfig:
             sensor_cutoff_scale=tuple(self.sensor_cutoff_scale),
             sensor_noise_scale=tuple(self.sensor_noise_scale),
             sensor_delay_offset=tuple(self.sensor_delay_offset),
+            parts=tuple((shape, size / 1000.0, scale) for shape, size, scale in self.parts),
+            linear_per_size=self.linear_per_size,
         )
 
     def trial(self) -> TrialConfig:
@@ -340,5 +361,12 @@ PRESETS: dict[str, TrainConfig] = {
         shapes=("triangle",),
         trials=800,
         num_envs=40,  # 20 updates of 40 trials (docs/design/training_presets.md)
+    ),
+    # One policy for the family of parts (world/family.py): the suite's trained parts, five
+    # shapes at 10-80 mm in both fits, the paper's training errors scaled with each part
+    "family": _PAPER.replace(
+        preset="family",
+        parts=tuple((p.shape, p.size_mm, p.hole_scale) for p in family.TRAINED),
+        linear_per_size=True,
     ),
 }

@@ -21,6 +21,7 @@ SHAPES: tuple[str, ...] = ("circle", "square", "triangle", "hexagon", "rectangle
 PAPER_SHAPES: tuple[str, ...] = SHAPES[:3]  # the paper's cross-sections (section 5)
 SIZES_MM: tuple[float, ...] = (25.0, 50.0, 60.0)  # the paper's sizes S (section 5)
 SIZE_RANGE: tuple[float, float] = (0.01, 0.08)  # m: the sizes S the family is built and tested at
+TRAINING_SIZE = 0.05  # m: the paper's training size S, at which its error ranges are given
 # Rotational symmetry order n of each section (0: a circle, whose yaw does not matter).
 SYMMETRY: tuple[int, ...] = (0, 4, 3, 6, 2)
 # The peg's inradius and circumradius over S (the round peg's are the circle's, D/2).

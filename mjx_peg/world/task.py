@@ -33,6 +33,7 @@ from mjx_peg.world.constants import (
     HOLE_SCALE_RANGE,
     PEG_LENGTH,
     SHAPES,
+    TRAINING_SIZE,
 )
 from mjx_peg.world.parts import HoleScaleRanges, hole_scale_ranges, hole_scale_values
 from mjx_peg.world.rotations import (
@@ -100,6 +101,14 @@ class TaskConfig:
     # fit's name "paper" or "tight", a number or (low, high) range for every shape, or a mapping
     # by shape); normalized to ((shape, low, high), ...); a shape not named takes its paper fit.
     hole_scale: HoleScaleRanges = ()
+    # A list of parts instead of every shape with every size: ((shape, size S in m, hole scale),
+    # ...), each trial one of them drawn uniformly (world/family.py); `shapes`, `sizes` and
+    # `hole_scale` then follow from the list. Empty: shapes x sizes.
+    parts: tuple[tuple[str, float, float], ...] = ()
+    # True: the linear errors (localization x, y, grasp height) scale with the part, linear_error
+    # x S / 50 mm, as the preset evaluation grids scale them; the angles do not (an angle is the
+    # same error for a part of any size)
+    linear_per_size: bool = False
     # Bound on kinematics.condition_number(q, PEG_LENGTH, "full") (6x6 tcp Jacobian, linear
     # rows in m, angular in rad) of the start and goal configurations. The default workspace
     # sits at 7-12; the bound rejects the folded elbow near the base and the stretched arm.
@@ -113,6 +122,8 @@ class TaskConfig:
             if shape not in SHAPES:
                 raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
         object.__setattr__(self, "shapes", shapes)
+        if self.parts:
+            self._take_parts()
         try:
             sizes = tuple(float(s) for s in np.atleast_1d(self.sizes))
         except (TypeError, ValueError):
@@ -221,6 +232,29 @@ class TaskConfig:
             angular_error=math.radians(angular_deg),
             **others,
         )
+
+    def _take_parts(self) -> None:
+        """Validate `parts` and derive the shapes, sizes and hole scales from them."""
+        parts = []
+        for part in self.parts:
+            try:
+                shape, size, scale = part
+                size, scale = float(size), float(scale)
+            except (TypeError, ValueError):
+                raise UsageError(
+                    f"TaskConfig.parts holds (shape, size m, hole scale) triples, got {part!r}"
+                ) from None
+            if shape not in SHAPES:
+                raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
+            parts.append((shape, size, scale))
+        object.__setattr__(self, "parts", tuple(parts))
+        object.__setattr__(self, "shapes", tuple(dict.fromkeys(p[0] for p in parts)))
+        object.__setattr__(self, "sizes", tuple(sorted({p[1] for p in parts})))
+        scales = {}
+        for shape, _, scale in parts:
+            lo, hi = scales.get(shape, (scale, scale))
+            scales[shape] = (min(lo, scale), max(hi, scale))
+        object.__setattr__(self, "hole_scale", scales)
 
     def replace(self, **changes) -> TaskConfig:
         return dataclasses.replace(self, **changes)
@@ -370,16 +404,24 @@ def candidate_trials(config: TaskConfig, rng: np.random.Generator, n: int) -> di
     """n trials drawn before the rejection of ill-conditioned ones: every TrialSpec field but the
     start configuration q0, and the start pose of the tcp (`tcp0_pos`, `tcp0_rot`) it solves."""
     lin, ang = config.linear_error, config.angular_error
-    combo = rng.integers(len(config.shapes) * len(config.sizes), size=n)
-    shape_ids = np.array([SHAPES.index(s) for s in config.shapes], dtype=np.int32)
+    if config.parts:
+        part = rng.integers(len(config.parts), size=n)
+        shape_id = np.array([SHAPES.index(p[0]) for p in config.parts], np.int32)[part]
+        size = np.array([p[1] for p in config.parts])[part]
+    else:
+        combo = rng.integers(len(config.shapes) * len(config.sizes), size=n)
+        shape_ids = np.array([SHAPES.index(s) for s in config.shapes], dtype=np.int32)
+        shape_id = shape_ids[combo // len(config.sizes)]
+        size = np.asarray(config.sizes, dtype=np.float64)[combo % len(config.sizes)]
+    lin = lin * (size / TRAINING_SIZE if config.linear_per_size else np.ones(n))
     r0, r1 = config.workspace_radius
     radius = np.sqrt(rng.uniform(r0**2, r1**2, n))  # uniform in area
     angle = rng.uniform(*config.workspace_angle, n)
     board_pos = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
     board_yaw = rng.uniform(*config.board_yaw_range, n)
     friction = rng.uniform(*config.friction_range, n)
-    loc_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, lin, ang])
-    grasp = rng.uniform(-1.0, 1.0, (n, 3)) * np.array([lin, ang, ang])
+    loc_error = rng.uniform(-1.0, 1.0, (n, 3)) * np.stack([lin, lin, np.full(n, ang)], axis=-1)
+    grasp = rng.uniform(-1.0, 1.0, (n, 3)) * np.stack([lin, np.full(n, ang), np.full(n, ang)], -1)
     on_board = config.grasp_model == "board"
     grasp_error = np.zeros_like(grasp) if on_board else grasp
     board_height = grasp[:, 0] if on_board else np.zeros(n)
@@ -403,9 +445,10 @@ def candidate_trials(config: TaskConfig, rng: np.random.Generator, n: int) -> di
     direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
     tilt = direction * (config.start_tilt_jitter * np.cbrt(rng.uniform(0.0, 1.0, n)))[:, None]
     tcp0_rot = matrix_from_rotvec(tilt) @ tool_down_rotation(hole_est_yaw)
+    extra = {"hole_scale": np.array([p[2] for p in config.parts])[part]} if config.parts else {}
     return dict(
-        shape_id=shape_ids[combo // len(config.sizes)],
-        size=np.asarray(config.sizes, dtype=np.float64)[combo % len(config.sizes)],
+        shape_id=shape_id,
+        size=size,
         board_pos=board_pos,
         board_yaw=board_yaw,
         friction=friction,
@@ -417,8 +460,9 @@ def candidate_trials(config: TaskConfig, rng: np.random.Generator, n: int) -> di
         hole_est_yaw=hole_est_yaw,
         tcp0_pos=tcp0_pos,
         tcp0_rot=tcp0_rot,
-        linear_range=np.full(n, lin),
+        linear_range=lin,
         angular_range=np.full(n, ang),
+        **extra,
     )
 
 
@@ -508,7 +552,8 @@ def sample_trials(
     # The sensor's draws come from a child stream: the trials of a seed stay what they were
     # before the sensor was randomized.
     arrays.update(_sensor_draws(config, rng.spawn(1)[0], batch))
-    arrays["hole_scale"] = _hole_scales(config, arrays["shape_id"], rng)
+    if "hole_scale" not in arrays:  # a list of parts carries its own
+        arrays["hole_scale"] = _hole_scales(config, arrays["shape_id"], rng)
     return TrialSpec.from_arrays(arrays).validate()
 
 

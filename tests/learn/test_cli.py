@@ -92,3 +92,21 @@ def test_init_from_takes_its_runs_observation_layout():
     assert resolve("--observation", "names").observation == "names"
     with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
         resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")
+
+
+def test_parts_names_the_suites_parts_and_scales_their_errors():
+    """--parts trains on named parts of the suite (e.g. a held-out one for transfer), their
+    linear errors x S / 50 mm; an unknown name is one line naming the suite's parts."""
+    import pytest
+
+    from mjx_peg.learn import cli
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv)))
+
+    config = resolve("--preset", "transfer", "--init-from", "paper", "--parts", "triangle-60-tight")
+    assert config.parts == (("triangle", 60.0, 1.02),) and config.linear_per_size
+    assert config.shapes == ("triangle",) and config.size_mm == (60.0,)
+    assert resolve("--preset", "family").linear_per_size and not resolve().linear_per_size
+    with pytest.raises(SystemExit):
+        resolve("--parts", "triangle-61")

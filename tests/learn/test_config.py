@@ -6,6 +6,7 @@ import pytest
 
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import PRESETS, TrainConfig
+from mjx_peg.world import family
 
 
 def test_the_default_config_is_the_default_preset():
@@ -28,6 +29,14 @@ def test_each_preset_is_the_default_with_a_budget_or_a_shape_changed():
         "quick": {},
         "paper": {"preset": "paper", "trials": 8192},
         "transfer": {"preset": "transfer", "shapes": ("triangle",), "trials": 800, "num_envs": 40},
+        "family": {
+            "preset": "family",
+            "trials": 8192,
+            "linear_per_size": True,
+            "parts": tuple((p.shape, p.size_mm, p.hole_scale) for p in family.TRAINED),
+            "shapes": ("circle", "square", "triangle", "hexagon", "rectangle"),
+            "size_mm": (10.0, 25.0, 30.0, 35.0, 40.0, 50.0, 60.0, 70.0, 80.0),
+        },
     }
 
 
