@@ -47,7 +47,6 @@ from mjx_peg.world.family import SUITE, Part
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 LINEAR_MM_AT_50, ANGULAR_DEG = 4.0, 6.0  # the paper's middle errors at its 50 mm parts
-TIME_LIMIT_S = 60.0
 CHATTER_N = 5.0  # a failure that chatters this much counts against the suite
 FIELDS = ("trial", "success", "time_s", "protective_stop", "chatter_n", "peak_force_n", "failure")
 
@@ -59,7 +58,6 @@ def part_task(part: Part) -> TaskConfig:
         (part.size_mm,),
         LINEAR_MM_AT_50 * part.size_mm / 50.0,
         ANGULAR_DEG,
-        time_limit_s=TIME_LIMIT_S,
         hole_scale=part.hole_scale,
     )
 
@@ -82,16 +80,17 @@ def read_rows(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def run_part(policy: str, part: Part, trials: int, seed: int, part_scale: str | None,
-             out: Path, progress=None) -> list[dict]:  # fmt: skip
+def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[dict]:
     """The part's rows, running its trials unless its CSV already holds them all."""
+    trials = args.trials
     if out.is_file():
         rows = read_rows(out)
         if len(rows) == trials:
             return rows
-    specs = sample_trials(part_task(part), part_seed(seed, part), trials)
+    specs = sample_trials(part_task(part), part_seed(args.seed, part), trials)
     _, controller = load_controller(policy)
-    config = TrialConfig(time_limit_s=TIME_LIMIT_S, search=policy_skill(policy, part_scale))
+    config = TrialConfig(time_limit_s=args.time_limit,
+                         search=policy_skill(policy, args.part_scale))  # fmt: skip
     result = run_trials(specs, controller(specs), engine="mujoco", config=config,
                         progress=progress)  # fmt: skip
     arrays = result.to_arrays()
@@ -119,7 +118,7 @@ def check_folder(folder: Path, policy: str, args) -> None:
     there is refused rather than mixed in."""
     record = dict(policy=policy, skill=constants_record(policy_skill(policy, args.part_scale)),
                   trials=args.trials, seed=args.seed, linear_mm_at_50=LINEAR_MM_AT_50,
-                  angular_deg=ANGULAR_DEG, time_limit_s=TIME_LIMIT_S)  # fmt: skip
+                  angular_deg=ANGULAR_DEG, time_limit_s=args.time_limit)  # fmt: skip
     path = folder / "suite.json"
     if path.is_file():
         saved = json.loads(path.read_text())
@@ -152,10 +151,10 @@ def summary(policy: str, part: Part, rows: list[dict]) -> dict:
     )  # fmt: skip
 
 
-def markdown(table: list[dict], trials: int, seed: int) -> str:
+def markdown(table: list[dict], trials: int, seed: int, time_limit: float) -> str:
     lines = [
         f"The parts suite (`python experiments/parts_suite.py`): {trials} trials per part, seed "
-        f"{seed}, +-{LINEAR_MM_AT_50:g} mm x S / 50 mm, +-{ANGULAR_DEG:g} deg, {TIME_LIMIT_S:g} s. "
+        f"{seed}, +-{LINEAR_MM_AT_50:g} mm x S / 50 mm, +-{ANGULAR_DEG:g} deg, {time_limit:g} s. "
         f"Held out of all training: {', '.join(p.name for p in SUITE if p.held_out)}.",
         "",
         "| part | policy | success | 95 % interval | time p50 / p90 | protective stops | "
@@ -223,6 +222,7 @@ def main(argv=None) -> int:
                    help="baseline, a shipped policy's name or a run directory; repeat")  # fmt: skip
     p.add_argument("--trials", type=int, default=300, help="trials per part (default 300)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--time-limit", type=float, default=60.0, help="per trial (default 60 s)")
     p.add_argument(
         "--part-scale",
         choices=PART_SCALES,
@@ -253,8 +253,8 @@ def main(argv=None) -> int:
                    smoothing=0.0, dynamic_ncols=True)  # fmt: skip
         with bar:
             for label, policy, part in todo:
-                rows = run_part(policy, part, args.trials, args.seed, args.part_scale,
-                                args.out / label / f"{part.name}.csv", bar.update)  # fmt: skip
+                rows = run_part(policy, part, args, args.out / label / f"{part.name}.csv",
+                                bar.update)  # fmt: skip
                 bar.n = max(bar.n, len(table) * args.trials + len(rows))
                 table.append(summary(label, part, rows))
                 r = table[-1]
@@ -264,7 +264,7 @@ def main(argv=None) -> int:
             writer = csv.DictWriter(f, fieldnames=list(table[0]))
             writer.writeheader()
             writer.writerows(table)
-        text = markdown(table, args.trials, args.seed)
+        text = markdown(table, args.trials, args.seed, args.time_limit)
         (args.out / "parts.md").write_text(text)
         plot(table, args.out / "parts.png")
     print(text, end="")

@@ -283,3 +283,20 @@ def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_pat
     out = run_script("experiments/catalogue.py", "--out", tmp_path, "--only", "api/skill_config")
     assert "| the Python API | 2 | 2 |" in out  # both one line: a UsageError each
     assert (tmp_path / "clone" / "mjx_peg").is_dir() and (tmp_path / "table.md").is_file()
+
+
+def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folder(tmp_path):
+    out = tmp_path / "parts"
+    tiny = ["--trials", 2, "--time-limit", 0.3, "--only", "circle-10,hexagon-20", "--out", out]
+    text = run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny)
+    assert "| hexagon-20 (held out) | baseline |" in text and "| circle-10 | baseline |" in text
+    rows = list(csv.DictReader(open(out / "parts.csv")))
+    assert [(r["part"], r["trials"]) for r in rows] == [("circle-10", "2"), ("hexagon-20", "2")]
+    assert (out / "parts.png").stat().st_size > 0
+    before = (out / "baseline" / "circle-10.csv").stat().st_mtime_ns
+    assert run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny) == text
+    assert (out / "baseline" / "circle-10.csv").stat().st_mtime_ns == before  # resumed, not rerun
+    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
+                           "baseline=paper", *map(str, tiny)], capture_output=True, text=True,
+                          cwd=ROOT)  # fmt: skip
+    assert done.returncode != 0 and "holds the suite of another run (policy, skill" in done.stderr
