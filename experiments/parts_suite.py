@@ -125,8 +125,9 @@ def check_folder(folder: Path, policy: str, args) -> None:
         if saved != json.loads(json.dumps(record)):
             differ = sorted(k for k in record if saved.get(k) != json.loads(json.dumps(record[k])))
             raise SystemExit(
-                f"{folder} holds the suite of another run ({', '.join(differ)} "
-                "differ): give another label (--policy LABEL=POLICY) or --out"
+                f"{folder} holds the suite of another run (its {' and '.join(differ)} "
+                f"{'differ' if len(differ) > 1 else 'differs'}): give another label "
+                "(--policy LABEL=POLICY) or --out"
             )
         return
     folder.mkdir(parents=True, exist_ok=True)
