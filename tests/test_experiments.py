@@ -299,4 +299,7 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
                            "baseline=paper", *map(str, tiny)], capture_output=True, text=True,
                           cwd=ROOT)  # fmt: skip
-    assert done.returncode != 0 and "holds the suite of another run (policy, skill" in done.stderr
+    assert (
+        done.returncode != 0
+        and "holds the suite of another run (its policy differs)" in done.stderr
+    )
