@@ -79,6 +79,10 @@ class TrainConfig:
     # exploration of the two finds only in the corner of both tails. False: k_t and k_theta
     joint_stiffness: bool = False
     init_noise_std_level: float = 1.5
+    # The exploration std's cap at the end of the budget, a fraction of each number's initial
+    # std, decaying geometrically over the iterations (ppo.cap_exploration); 1: no cap, the std
+    # as the update learns it
+    std_decay: float = 1.0
     prior: str = "baseline"  # "baseline": start at the hand-tuned skill; "none": Brax's init
     # "none" only: the policy's mean head's initial kernel times this (Brax's init: 1), so the
     # first policy is the mid-range controller for every observation rather than a random
@@ -222,6 +226,8 @@ class TrainConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"{name} must be a positive number, got {value}")
+        if not (isinstance(self.std_decay, int | float) and 0.0 < self.std_decay <= 1.0):
+            raise UsageError(f"std_decay must be in (0, 1], got {self.std_decay!r}")
         if self.joint_stiffness and not self.normalized_actions:
             raise UsageError("joint_stiffness needs normalized_actions")
         if not (isinstance(self.eval_every, int) and self.eval_every >= 0):

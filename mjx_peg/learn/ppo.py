@@ -201,6 +201,20 @@ def initial_log_std(config: TrainConfig) -> jax.Array:
     return jnp.log(jnp.asarray(exploration_scale(config)))
 
 
+def cap_exploration(config: TrainConfig, params: ppo_losses.PPONetworkParams, done: int):
+    """The params with each number's exploration std held under its decaying cap: after `done`
+    of the run's iterations, initial std x std_decay ** (done / iterations), so that by the end
+    of the budget the policy explores std_decay times as far as it began (`std_decay` 1: no
+    cap). A std the update shrank below its cap stays as it is."""
+    if config.std_decay >= 1.0:
+        return params
+    cap = initial_log_std(config) + jnp.log(config.std_decay) * done / config.iterations
+    policy = params.policy["params"]
+    log_std = jnp.minimum(policy["std_logparam"]["log_value"], cap)
+    policy = {**policy, "std_logparam": {**policy["std_logparam"], "log_value": log_std}}
+    return params.replace(policy={**params.policy, "params": policy})
+
+
 def init_state(config: TrainConfig, networks: ppo_networks.PPONetworks) -> TrainingState:
     """A fresh state from `config.seed` (unreplicated).
 
@@ -310,6 +324,7 @@ def make_iteration(env: InsertionEnv, config: TrainConfig):
             None,
             length=config.update_epochs,
         )
+        params = cap_exploration(config, params, state.iteration + 1)
         # the update's KL: the last epoch's, after all but its own last step
         kl = jnp.mean(metrics["kl_mean"][-1])
         metrics = jax.tree.map(jnp.mean, metrics)
