@@ -73,3 +73,26 @@ def test_the_learning_rate_follows_the_updates_kl(tiny_config):
     state = make_optimizer(fixed).init({"w": jnp.zeros(3)})
     assert adapt_learning_rate(fixed, state, jnp.asarray(1.0)) is state
     assert float(learning_rate(fixed, state)) == pytest.approx(fixed.learning_rate)
+
+
+def test_the_exploration_std_decays_under_its_cap():
+    """std_decay 0.25 over 32 iterations: every std at most 0.25 ** (k / 32) of its start after
+    k iterations (0.5 halfway, 0.25 at the end); a std already under its cap is kept; std_decay
+    1 leaves the params as they are."""
+    from mjx_peg.learn.config import PRESETS, prior_settings
+    from mjx_peg.learn.ppo import cap_exploration, init_state, make_networks
+
+    config = PRESETS["paper"].replace(**prior_settings("none"), std_decay=0.25)
+    assert config.iterations == 32
+    params = init_state(config, make_networks(config)).params
+
+    def stds(p):
+        return np.exp(np.asarray(p.policy["params"]["std_logparam"]["log_value"]))
+
+    np.testing.assert_allclose(stds(cap_exploration(config, params, 16)), 0.5, rtol=1e-6)
+    np.testing.assert_allclose(stds(cap_exploration(config, params, 32)), 0.25, rtol=1e-6)
+    low = params.policy["params"]["std_logparam"]["log_value"].at[3].set(np.log(0.1))
+    policy = {**params.policy["params"], "std_logparam": {"log_value": low}}
+    lowered = params.replace(policy={"params": policy})
+    assert stds(cap_exploration(config, lowered, 16))[3] == pytest.approx(0.1)
+    assert cap_exploration(config.replace(std_decay=1.0), params, 16) is params
