@@ -2,7 +2,8 @@
 at its hand-tuned value in turn, on the same trials, paired against the policy as learned.
 
     python experiments/freeze_ablation.py --policy runs/paper/seed-0 [--trials 1500]
-        [--linear-mm 8] [--angular-deg 12] [--seed 2] [--only spiral_pitch,k] [--csv FILE]
+        [--linear-mm 8] [--angular-deg 12] [--seed 2] [--time-limit 60] [--only spiral_pitch,k]
+        [--csv FILE]
 
 The policy's 47 numbers per trial (the controller's 38 and the contact search's 9,
 `skill.params.LEARNED_NAMES`); frozen in turn: each of the 9, the two stiffnesses together
@@ -60,6 +61,7 @@ def main(argv=None) -> None:
     p.add_argument("--linear-mm", type=float, default=8.0)
     p.add_argument("--angular-deg", type=float, default=12.0)
     p.add_argument("--seed", type=int, default=2)
+    p.add_argument("--time-limit", type=float, default=60.0, help="per trial (default 60 s)")
     p.add_argument("--shapes", default="circle,square")
     p.add_argument("--only", help="comma-separated variants (default: every one)")
     p.add_argument("--csv", help="write the rows here too")
@@ -73,7 +75,7 @@ def main(argv=None) -> None:
     specs = sample_trials(task, args.seed, args.trials)
     learned = policy.controller_vectors(specs)
     prior = config.prior_vector()
-    trial = config.trial().replace(time_limit_s=60.0)
+    trial = config.trial().replace(time_limit_s=args.time_limit)
     base = run_trials(specs, learned, config=trial).success
     rows = [("as learned", base.mean(), 0.0, 0, 0, 1.0)]
     print(f"{args.policy}: {len(specs)} trials, as learned {100 * base.mean():.1f} %", flush=True)
