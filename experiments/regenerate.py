@@ -5,13 +5,14 @@ When the trial or the spiral skill changes, every number of it on the results pa
 (`experiments/ship_policy.py`, at HEAD), the spiral grids under docs/eval/ (`paper-small` at 50
 mm, the triangle before and after transfer, 25 and 60 mm, the flange model, the baseline), the
 500- and 1,500-trial contact sets, the paper's skill on the 500, zero error, the sensor and
-friction variants, the simulated arm, vision to action, and the nominal 350-range grid last.
+friction variants, the simulated arm, the parts suite, vision to action, and the nominal
+350-range grid last.
 `policies/paper` is not retrained (`python train.py --preset paper`, ~22 min here, is a decision
 of its own); its manifest records again that it runs the spiral skill, with the spiral's
 constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
 its commands.
 
-    python experiments/regenerate.py                       # everything, ~110 min on 2 cores
+    python experiments/regenerate.py                       # everything, ~155 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 32 min nominal grid
@@ -139,10 +140,12 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
                     "--angular-deg", "6", "--trials", "25", "--seed", "0", *extra, "--out",
                     f"{results}/arm/{name}")
             arm.append(Step(name, argv, 35, f"{results}/arm/{name}"))
+    parts = Step("parts", (py, "experiments/parts_suite.py", "--policy", "baseline", "--policy",
+                           "paper", "--out", f"{results}/parts"), 2700, f"{results}/parts")
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
                              "docs/vision/act"), 310, "docs/vision/act")
     nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
-    return [*train, *grids, *sets, zero, *arm, vision, nominal]
+    return [*train, *grids, *sets, zero, *arm, parts, vision, nominal]
     # fmt: on
 
 

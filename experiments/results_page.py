@@ -506,6 +506,21 @@ def arm_section(made_by) -> list[str]:
     return lines + table(header, rows) + ["", "Commands:", "", *cmds]
 
 
+def parts_section(made_by) -> list[str]:
+    """The parts suite's table (experiments/parts_suite.py writes it) and its figure."""
+    folder = ROOT / RESULTS / "parts"
+    if not (folder / "parts.md").exists():
+        return []
+    argv = made_by.get(f"{RESULTS}/parts", ["(no command recorded)"])
+    lines = ["## The parts suite", "", *(folder / "parts.md").read_text().rstrip("\n").split("\n")]
+    return lines + [
+        "",
+        "![the parts suite](results/parts/parts.png)",
+        "",
+        f"Command: {shell(argv)}",
+    ]
+
+
 def vision_section(made_by) -> list[str]:
     lines = []
     evals = sorted((ROOT / "docs/vision/eval").glob("*/metrics.json"))
@@ -577,7 +592,7 @@ def page() -> str:
     ]
     if part := learning_section():
         lines += ["", *part]
-    for section in (contact_section, zero_section, arm_section, vision_section):
+    for section in (contact_section, parts_section, zero_section, arm_section, vision_section):
         if part := section(made_by):
             lines += ["", *part]
     missing = [name for path, (name, _) in made.items()

@@ -162,7 +162,7 @@ def integer(lo: int, hi: int, why: str = "") -> Callable[[str], int]:
 
 def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[str], float]:
     """argparse type: a finite number in [lo, hi] (or (lo, hi] with lo_open), in `unit`."""
-    text = f"{'(' if lo_open else '['}{lo:g}, {hi:g}] {unit}"
+    text = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]" + (f" {unit}" if unit else "")
 
     def parse(value: str) -> float:
         try:

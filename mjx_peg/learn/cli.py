@@ -86,6 +86,17 @@ def parser() -> argparse.ArgumentParser:
         help="also write every metric to OUT/tensorboard (tensorboard --logdir OUT)",
     )
     p.add_argument(
+        "--kl-target",
+        type=cli.number(0, 1, "", lo_open=True),
+        help="the update's KL the learning rate is adapted to (preset: 0.01)",
+    )
+    p.add_argument(
+        "--std-decay",
+        type=cli.number(0, 1, "", lo_open=True),
+        help="the exploration std's cap at the end of the budget, a fraction of its start, "
+        "decaying geometrically (preset: 1, no cap)",
+    )
+    p.add_argument(
         "--parts",
         type=suite_parts,
         help="train on these parts of the suite (world/family.py, comma-separated, e.g. "
@@ -177,6 +188,8 @@ def resolve_config(args):
         "eval_every": args.eval_every,
         "observation": args.observation,
         "parts": args.parts,
+        "kl_target": args.kl_target,
+        "std_decay": args.std_decay,
         "linear_per_size": True if args.parts else None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})

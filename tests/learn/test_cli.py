@@ -110,3 +110,20 @@ def test_parts_names_the_suites_parts_and_scales_their_errors():
     assert resolve("--preset", "family").linear_per_size and not resolve().linear_per_size
     with pytest.raises(SystemExit):
         resolve("--parts", "triangle-61")
+
+
+def test_kl_target_and_std_decay_reach_the_config_and_refuse_bad_values(capsys):
+    import pytest
+
+    from mjx_peg.learn import cli
+
+    args = cli.parser().parse_args(["--preset", "paper", "--prior", "none", "--kl-target",
+                                    "0.03", "--std-decay", "0.25"])  # fmt: skip
+    config = cli.resolve_config(args)
+    assert (config.kl_target, config.std_decay, config.prior) == (0.03, 0.25, "none")
+    default = cli.resolve_config(cli.parser().parse_args([]))
+    assert (default.kl_target, default.std_decay) == (0.01, 1.0)
+    for flag, value in (("--kl-target", "0"), ("--std-decay", "1.5")):
+        with pytest.raises(SystemExit):
+            cli.parser().parse_args([flag, value])
+        assert f"{flag} must be a number in (0, 1], got {value}" in capsys.readouterr().err
