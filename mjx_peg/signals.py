@@ -11,8 +11,9 @@ extension (JAX, MuJoCo) that a KeyboardInterrupt would cut in half, and crash or
 never continues. After it, the signal is raised in the main thread as KeyboardInterrupt
 (`Terminated` for SIGTERM), so that what is being written is finished or removed and worker
 processes are stopped; never inside an import or a garbage-collector callback (where Python
-would print and drop it, or leave a module half made) or while a child process is being started
-(it would be left without its instructions): there it is raised again 20 ms later.
+would print and drop it, or leave a module half made) or while a child process or a thread is
+being started (the child would be left without its instructions; the thread could never be
+joined): there it is raised again 20 ms later.
 Running CPU-engine calls are asked to stop at once (`engines/interrupt.py`). Later signals of
 either kind, while the command unwinds, are ignored. A signal that was ignored when the process
 started (SIGINT in a background job) stays ignored.
@@ -57,9 +58,15 @@ _LAUNCHING = tuple(f"{os.sep}multiprocessing{os.sep}{name}.py"
                    for name in ("popen_spawn_posix", "popen_forkserver", "popen_fork"))  # fmt: skip
 
 
+def threading_file() -> str | None:
+    """threading.py's path, once it is imported (a thread is started only after)."""
+    threading = sys.modules.get("threading")
+    return getattr(threading, "__file__", None)
+
+
 def _unsafe(frame) -> bool:
     """Whether raising in `frame` would be lost or leave something half made: inside an import,
-    a garbage-collector callback, a finalizer or the start of a child process."""
+    a garbage-collector callback, a finalizer, the start of a child process or of a thread."""
     callbacks = {getattr(cb, "__code__", None) for cb in gc.callbacks}
     while frame is not None:
         code = frame.f_code
@@ -67,6 +74,8 @@ def _unsafe(frame) -> bool:
             return True
         if code.co_filename.endswith(_LAUNCHING):
             return True
+        if code.co_name == "start" and code.co_filename == threading_file():
+            return True  # Thread.start: a thread not yet marked started cannot be joined
         if code.co_name == "__del__":
             return True
         frame = frame.f_back
@@ -82,9 +91,10 @@ def _handle(signum, frame) -> None:
     if _raised:
         return  # unwinding already
     _received = _received or signum
-    stop = sys.modules.get("mjx_peg.engines.interrupt")
+    # (a module being imported may not have its functions yet)
+    stop = getattr(sys.modules.get("mjx_peg.engines.interrupt"), "request", None)
     if stop is not None:
-        stop.request()
+        stop()
     if _unsafe(frame):
         import threading
 

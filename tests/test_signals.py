@@ -95,9 +95,10 @@ def test_a_program_of_the_package_is_told_by_its_command_line(argv, program, mon
     assert signals.program() == program
 
 
-def test_a_signal_waits_while_a_child_process_is_started_and_inside_an_import():
+def test_a_signal_waits_while_a_child_process_or_a_thread_is_started_and_inside_an_import():
     """Raised there, KeyboardInterrupt would leave a spawned child without its preparation data
-    (it prints EOFError's traceback) or a module half made: those frames are unsafe, others not."""
+    (it prints EOFError's traceback), a thread that cannot be joined or a module half made: those
+    frames are unsafe, others not."""
     import multiprocessing.popen_spawn_posix as launching
 
     def frame_in(filename: str):
@@ -107,5 +108,27 @@ def test_a_signal_waits_while_a_child_process_is_started_and_inside_an_import():
 
     assert signals._unsafe(frame_in(launching.__file__))
     assert signals._unsafe(frame_in("<frozen importlib._bootstrap>"))
+    import threading
+
+    scope = {}
+    exec(compile("import sys\ndef start():\n    return sys._getframe()\nframe = start()",
+                 threading.__file__, "exec"), scope)  # fmt: skip
+    assert signals._unsafe(scope["frame"])  # Thread.start
     assert not signals._unsafe(frame_in(__file__))
     assert not signals._unsafe(sys._getframe())
+
+
+def test_a_signal_while_the_engines_stop_flag_is_being_imported_is_still_one_interrupt(
+    monkeypatch,
+):
+    """The handler asks running engine calls to stop through engines/interrupt.py; a module
+    still being imported has no `request` yet: the signal is still the command's interrupt."""
+    import types
+
+    monkeypatch.setitem(sys.modules, "mjx_peg.engines.interrupt", types.ModuleType("partial"))
+    for name, value in (("_prog", "eval.py"), ("_working", True), ("_raised", False),
+                        ("_received", None)):  # fmt: skip
+        monkeypatch.setattr(signals, name, value)
+    with pytest.raises(KeyboardInterrupt):
+        signals._handle(signal.SIGINT, sys._getframe())
+    assert signals.received() == signal.SIGINT

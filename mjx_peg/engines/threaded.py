@@ -69,7 +69,8 @@ def run_lanes(specs, params, config, threads: int, slots: int, kind: tuple, sour
     except BaseException:  # KeyboardInterrupt: stop the lanes at their next period
         source.stop()
         for t in pool:  # and wait for them: a lane still in MuJoCo at exit would crash it
-            t.join(timeout=LANE_STOP_S)
+            if t.is_alive():  # (one whose start was interrupted never ran)
+                t.join(timeout=LANE_STOP_S)
         raise
     source.flush()
     sims.keep_sims(set(count))

@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     if len(set(shapes)) != len(shapes):
         p.error(f"--shapes names a shape twice: {args.shapes}")
     hole_scale = parse_hole_scale(args.hole_scale)
-    from mjx_peg.engines import run_trials
+    from mjx_peg.engines import resolve_engine, run_trials
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.skill.baseline import baseline_params
     from mjx_peg.skill.search import skill_config
@@ -68,10 +68,13 @@ def main(argv=None) -> int:
     from mjx_peg.world import mujoco_log
 
     mujoco_log.send_to(None)  # no output directory: MuJoCo's warnings go nowhere
+    # Before working(): "auto" imports JAX and starts its backend to look for a GPU, and a signal
+    # that unwound from there would leave its threads to crash the exit (SIGABRT)
+    engine = resolve_engine(args.engine)
     signals.working()  # the engine starts worker processes: a signal stops them
     for shape, task in zip(shapes, tasks, strict=True):
         specs = sample_trials(task, args.seed, args.trials)
-        result = run_trials(specs, baseline_params(), engine=args.engine, config=config)
+        result = run_trials(specs, baseline_params(), engine=engine, config=config)
         fit = fit_text(shape, task.hole_scale_range(shape)[0])
         print(
             f"{shape} {args.size:g} mm{fit} ±{args.linear_mm:g} mm ±{args.angular_deg:g} deg: "
