@@ -14,6 +14,7 @@ arguments (and take Ctrl-C) before importing MuJoCo or JAX.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import functools
 import math
@@ -89,6 +90,8 @@ def entry(prog: str, interrupted: str = "interrupted") -> Callable:
                 if program:
                     code = _after_signal(prog, code)
                     signals.finished()
+            if program and signals.received() is not None:
+                _exit_stopped(code)
             return code
 
         return run
@@ -102,6 +105,23 @@ def _printable_streams() -> None:
     for stream in (sys.stdout, sys.stderr):
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+
+
+def _exit_stopped(code: int) -> None:
+    """End a command that a signal stopped, once it has unwound (what it wrote finished or
+    removed, its workers stopped), without the interpreter's finalization: native threads (XLA's)
+    still running there can abort the exit (SIGABRT). multiprocessing's finalizers run first, so
+    that no semaphore of a worker pool is reported leaked; with Ray connected, its own exit runs
+    (it stops the processes it started)."""
+    if "ray" in sys.modules:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    util = sys.modules.get("multiprocessing.util")
+    if util is not None:
+        util._run_finalizers()
+    os._exit(code)
 
 
 def _after_signal(prog: str, code: int | None) -> int | None:

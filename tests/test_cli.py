@@ -629,3 +629,30 @@ def test_every_skill_option_describes_both_skills(main, argv, capsys):
     assert "--skill {paper,spiral}" in text
     for name, description in SKILL_DESCRIPTIONS.items():
         assert f"{name}: {description}" in text
+
+
+def test_a_stopped_command_exits_without_the_interpreters_finalization(tmp_path):
+    """Ctrl-C once the command works: one line, 130, and the process ends without the
+    interpreter's exit (atexit handlers, native threads' teardown), multiprocessing's semaphores
+    released first (no 'leaked semaphore' report)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "stopped.py"
+    script.write_text(
+        "import atexit, multiprocessing, os, signal, time\n"
+        "from mjx_peg import cli, signals\n"
+        "@cli.entry('stopped')\n"
+        "def main(argv=None):\n"
+        "    lock = multiprocessing.get_context('spawn').Lock()\n"
+        "    atexit.register(print, 'finalized')\n"
+        "    signals.working()\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(5)\n"
+        "    return 0\n"
+        "main()\n"
+    )
+    done = subprocess.run([sys.executable, script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 130
+    assert done.stderr.strip() == "stopped: interrupted"
+    assert "finalized" not in done.stdout
