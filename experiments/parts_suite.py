@@ -113,10 +113,10 @@ def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[di
     return [{k: str(v) for k, v in r.items()} for r in rows]
 
 
-def check_folder(folder: Path, policy: str, args) -> None:
-    """OUT/LABEL/suite.json records what its CSVs ran; another policy, skill or set of trials
-    there is refused rather than mixed in."""
-    record = dict(policy=policy, skill=constants_record(policy_skill(policy, args.part_scale)),
+def check_folder(folder: Path, given: str, policy: str, args) -> None:
+    """OUT/LABEL/suite.json records what its CSVs ran (the policy as the command named it);
+    another policy, skill or set of trials there is refused rather than mixed in."""
+    record = dict(policy=given, skill=constants_record(policy_skill(policy, args.part_scale)),
                   trials=args.trials, seed=args.seed, linear_mm_at_50=LINEAR_MM_AT_50,
                   angular_deg=ANGULAR_DEG, time_limit_s=args.time_limit)  # fmt: skip
     path = folder / "suite.json"
@@ -207,14 +207,14 @@ def plot(table: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def parse_policy(text: str) -> tuple[str, str]:
-    """'LABEL=POLICY' or 'POLICY' (labelled by its folder's name)."""
-    label, _, policy = text.rpartition("=")
-    if not policy:
+def parse_policy(text: str) -> tuple[str, str, str]:
+    """(label, the policy as given, its folder) of 'LABEL=POLICY' or 'POLICY' (labelled by its
+    folder's name)."""
+    label, _, given = text.rpartition("=")
+    if not given:
         raise SystemExit(f"--policy takes POLICY or LABEL=POLICY, got {text!r}")
-    if policy != "baseline":
-        policy = str(resolve_policy(policy))
-    return label or Path(policy).name, policy
+    policy = given if given == "baseline" else str(resolve_policy(given))
+    return label or Path(policy).name, given, policy
 
 
 def main(argv=None) -> int:
@@ -247,9 +247,9 @@ def main(argv=None) -> int:
 
     table = []
     with outdir.exclusive(args.out):
-        todo = [(label, policy, part) for label, policy in policies for part in chosen]
-        for label, policy in policies:
-            check_folder(args.out / label, policy, args)
+        todo = [(label, policy, part) for label, _, policy in policies for part in chosen]
+        for label, given, policy in policies:
+            check_folder(args.out / label, given, policy, args)
         bar = tqdm(total=len(todo) * args.trials, desc="parts suite", unit="trial",
                    smoothing=0.0, dynamic_ncols=True)  # fmt: skip
         with bar:
@@ -261,6 +261,9 @@ def main(argv=None) -> int:
                 r = table[-1]
                 bar.write(f"{label} {part.name}: {r['success_pct']:.1f} % ({r['successes']} / "
                           f"{r['trials']}), stops {r['protective_stops']}")  # fmt: skip
+        order = {part.name: k for k, part in enumerate(SUITE)}
+        labels = [label for label, _, _ in policies]
+        table.sort(key=lambda r: (order[r["part"]], labels.index(r["policy"])))
         with open(args.out / "parts.csv", "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=list(table[0]))
             writer.writeheader()
