@@ -15,6 +15,9 @@ from mjx_peg.world.parts import hole_scale_of
 
 @dataclasses.dataclass(frozen=True)
 class Part:
+    """One part of the suite: its shape, size S (mm) and fit; its name reads them, e.g.
+    'triangle-60-tight'."""
+
     shape: str
     size_mm: float
     fit: str  # "paper" or "tight" (constants.HOLE_FITS)
