@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import json
 import math
 import sys
@@ -66,9 +67,14 @@ def part_seed(seed: int, part: Part) -> int:
     return (seed + zlib.crc32(part.name.encode())) % 2**32
 
 
+# A policy is read once per run, not once per part
+controller_of = functools.cache(lambda policy: load_controller(policy)[1])
+policy_of = functools.cache(load_policy)
+
+
 def policy_skill(policy: str, part_scale: str | None):
     """The skill a policy runs in the suite: its manifest's (the baseline: the spiral)."""
-    skill = named_skill("spiral") if policy == "baseline" else load_policy(policy).skill
+    skill = named_skill("spiral") if policy == "baseline" else policy_of(policy).skill
     config = skill.config
     if part_scale is not None:
         config = config.replace(part_scale=part_scale)
@@ -88,7 +94,7 @@ def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[di
         if len(rows) == trials:
             return rows
     specs = sample_trials(part_task(part), part_seed(args.seed, part), trials)
-    _, controller = load_controller(policy)
+    controller = controller_of(policy)
     config = TrialConfig(time_limit_s=args.time_limit,
                          search=policy_skill(policy, args.part_scale))  # fmt: skip
     result = run_trials(specs, controller(specs), engine="mujoco", config=config,
