@@ -1310,7 +1310,7 @@ def _signal_at(signum: int, at_s: float, twice: bool = False, from_handler: bool
             while not signals.taken(child.pid) and child.poll() is None:
                 time.sleep(0.002)
         time.sleep(max(0.0, at_s - (time.monotonic() - start)))
-        sent = child.poll() is None
+        sent = child.poll() is None and not signals.done(child.pid)
         if sent:
             os.killpg(child.pid, signum)
             if twice:
@@ -1318,7 +1318,7 @@ def _signal_at(signum: int, at_s: float, twice: bool = False, from_handler: bool
                 if child.poll() is None:
                     os.killpg(child.pid, signum)
         code, err = _finish(child, timeout=120)
-        note = "" if sent else f"finished: it ended before the signal at {at_s:g} s"
+        note = "" if sent else f"finished: its command had ended before the signal at {at_s:g} s"
         return Result(code, "", err, time.monotonic() - start, note)
 
     return script

@@ -84,6 +84,8 @@ def entry(prog: str, interrupted: str = "interrupted") -> Callable:
                 print(f"{prog}: {'terminated' if stopped else interrupted}", file=sys.stderr)
                 code = signals.EXIT_STATUS[signal.SIGTERM if stopped else signal.SIGINT]
             finally:
+                if program:
+                    signals.closing()
                 workers = sys.modules.get("mjx_peg.engines.processes")
                 if workers is not None:
                     workers.shutdown()

@@ -15,8 +15,8 @@ would print and drop it, or leave a module half made) or while a child process o
 being started (the child would be left without its instructions; the thread could never be
 joined): there it is raised again 20 ms later.
 Running CPU-engine calls are asked to stop at once (`engines/interrupt.py`). Later signals of
-either kind, while the command unwinds, are ignored. A signal that was ignored when the process
-started (SIGINT in a background job) stays ignored.
+either kind, while the command unwinds or closes (`closing`), are recorded and not raised. A
+signal that was ignored when the process started (SIGINT in a background job) stays ignored.
 """
 
 from __future__ import annotations
@@ -88,9 +88,9 @@ def _handle(signum, frame) -> None:
         line = f"{_prog}: {WORD[signum]}\n"
         os.write(2, line.encode(errors="replace"))
         os._exit(EXIT_STATUS[signum])
-    if _raised:
-        return  # unwinding already
     _received = _received or signum
+    if _raised:
+        return  # unwinding or closing already
     # (a module being imported may not have its functions yet)
     stop = getattr(sys.modules.get("mjx_peg.engines.interrupt"), "request", None)
     if stop is not None:
@@ -160,15 +160,35 @@ def working() -> None:
     _working = True
 
 
+def _mask(pid: int, field: str) -> int:
+    """A signal mask of process `pid` from /proc/PID/status (`SigCgt`, `SigIgn`; 0 elsewhere)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            line = next((line for line in f if line.startswith(f"{field}:")), f"{field}: 0")
+    except OSError:
+        return 0
+    return int(line.split()[1], 16)
+
+
+def closing() -> None:
+    """The command's work has returned, stopped or not, and it closes (its workers stopped, its
+    exit status settled): a signal from now on is recorded, not raised, so that the closing is
+    whole and the command still ends as stopped, in one line."""
+    global _raised
+    if _in_main_thread():
+        _raised = True
+
+
 def taken(pid: int) -> bool:
     """Whether process `pid` has a handler for SIGTERM, which Python alone never installs: a
     program of this package has taken its signals (Linux: /proc/PID/status; False elsewhere)."""
-    try:
-        with open(f"/proc/{pid}/status") as f:
-            caught = next((line for line in f if line.startswith("SigCgt:")), "SigCgt: 0")
-    except OSError:
-        return False
-    return bool(int(caught.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    return bool(_mask(pid, "SigCgt") >> (signal.SIGTERM - 1) & 1)
+
+
+def done(pid: int) -> bool:
+    """Whether process `pid`, having taken its signals, now ignores SIGTERM: its command has
+    ended (`finished`) and the process is exiting (Linux; False elsewhere)."""
+    return bool(_mask(pid, "SigIgn") >> (signal.SIGTERM - 1) & 1)
 
 
 def received() -> int | None:

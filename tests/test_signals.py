@@ -132,3 +132,57 @@ def test_a_signal_while_the_engines_stop_flag_is_being_imported_is_still_one_int
     with pytest.raises(KeyboardInterrupt):
         signals._handle(signal.SIGINT, sys._getframe())
     assert signals.received() == signal.SIGINT
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc (Linux)")
+def test_a_finished_command_is_told_from_one_still_working_by_its_signal_masks():
+    """`taken` once a command holds its signals, `done` once it has ended and ignores them: a
+    signal sent after that meets a command whose work is whole (the catalogue does not count it)."""
+    code = (
+        "import sys, time\nfrom mjx_peg import signals\nsignals.install('t')\n"
+        "print('in', flush=True); sys.stdin.readline()\n"
+        "signals.finished()\nprint('out', flush=True); time.sleep(30)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    child = subprocess.Popen([sys.executable, "-c", code], env=env, text=True,
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)  # fmt: skip
+    try:
+        assert child.stdout.readline() == "in\n"
+        assert signals.taken(child.pid) and not signals.done(child.pid)
+        child.stdin.write("\n")
+        child.stdin.flush()
+        assert child.stdout.readline() == "out\n"
+        assert signals.done(child.pid) and not signals.taken(child.pid)
+    finally:
+        child.kill()
+        child.wait()
+    assert not signals.taken(child.pid) and not signals.done(child.pid)
+
+
+def test_a_signal_while_a_command_closes_after_its_work_is_one_line_and_130():
+    """Main has returned and the command stops its workers: a Ctrl-C that lands there is not
+    raised out of the closing (a traceback, then death by SIGINT) but ends the command as
+    stopped, in one line."""
+    code = (
+        "import os, signal, sys, time, types\n"
+        "from mjx_peg import cli, signals\n"
+        "workers = types.ModuleType('mjx_peg.engines.processes')\n"
+        "def shutdown():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.2)\n"
+        "    print('closed', flush=True)\n"
+        "workers.shutdown = shutdown\n"
+        "sys.modules['mjx_peg.engines.processes'] = workers\n"
+        "@cli.entry('t')\n"
+        "def main(argv=None):\n"
+        "    signals.working()\n"
+        "    return 0\n"
+        "sys.exit(main())\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    lines = [line for line in run.stderr.splitlines() if line.strip()]
+    assert (run.returncode, lines, run.stdout) == (130, ["t: interrupted"], "closed\n"), run.stderr
