@@ -1488,9 +1488,12 @@ def run_case(runner: Runner, case: Case) -> dict:
     lines = [line for line in r.err.splitlines() if line.strip()]
     _unmount(folder / "disk")
     shutil.rmtree(folder, ignore_errors=True)
-    return {"name": case.name, "group": case.group, "class": kind, "code": r.code,
-            "lines": len(lines), "last": lines[-1][:300] if lines else "", "note": r.note[:300],
-            "wall_s": round(r.wall_s, 2)}  # fmt: skip
+    record = {"name": case.name, "group": case.group, "class": kind, "code": r.code,
+              "lines": len(lines), "last": lines[-1][:300] if lines else "", "note": r.note[:300],
+              "wall_s": round(r.wall_s, 2)}  # fmt: skip
+    if kind not in ("ok", "one-line"):
+        record["stderr"] = r.err[-3000:]  # what went wrong, kept for reading
+    return record
 
 
 def write_table(out: Path, results: list[dict], title: str) -> str:

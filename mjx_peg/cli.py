@@ -85,7 +85,7 @@ def entry(prog: str, interrupted: str = "interrupted") -> Callable:
                 code = signals.EXIT_STATUS[signal.SIGTERM if stopped else signal.SIGINT]
             finally:
                 if program:
-                    signals.closing()
+                    signals.unwinding()
                 workers = sys.modules.get("mjx_peg.engines.processes")
                 if workers is not None:
                     workers.shutdown()

@@ -15,7 +15,7 @@ would print and drop it, or leave a module half made) or while a child process o
 being started (the child would be left without its instructions; the thread could never be
 joined): there it is raised again 20 ms later.
 Running CPU-engine calls are asked to stop at once (`engines/interrupt.py`). Later signals of
-either kind, while the command unwinds or closes (`closing`), are recorded and not raised. A
+either kind, while the command unwinds or closes (`unwinding`), are recorded and not raised. A
 signal that was ignored when the process started (SIGINT in a background job) stays ignored.
 """
 
@@ -170,10 +170,12 @@ def _mask(pid: int, field: str) -> int:
     return int(line.split()[1], 16)
 
 
-def closing() -> None:
-    """The command's work has returned, stopped or not, and it closes (its workers stopped, its
-    exit status settled): a signal from now on is recorded, not raised, so that the closing is
-    whole and the command still ends as stopped, in one line."""
+def unwinding() -> None:
+    """The command stops or closes: a KeyboardInterrupt for the signal is on its way, raised by
+    other code than the handler (the engines' stop, `engines/interrupt.py`), or the command's
+    work has returned and it closes (its workers stopped, its exit status settled). From now on
+    a signal, or the retry of one that came in an unsafe frame, is recorded and not raised: one
+    KeyboardInterrupt, a whole closing, and the command still ends as stopped, in one line."""
     global _raised
     if _in_main_thread():
         _raised = True

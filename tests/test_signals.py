@@ -186,3 +186,36 @@ def test_a_signal_while_a_command_closes_after_its_work_is_one_line_and_130():
     )  # fmt: skip
     lines = [line for line in run.stderr.splitlines() if line.strip()]
     assert (run.returncode, lines, run.stdout) == (130, ["t: interrupted"], "closed\n"), run.stderr
+
+
+def test_a_retried_signal_after_the_engines_stop_raised_is_not_raised_again():
+    """A Ctrl-C that came in an unsafe frame is raised again 20 ms later; if the engines' stop
+    request raised KeyboardInterrupt first, the retry must not raise a second one while the
+    command prints its line and closes (it did: a traceback, then death by SIGINT)."""
+    code = (
+        "import signal, sys, time\n"
+        "from mjx_peg import cli, signals\n"
+        "from mjx_peg.engines import interrupt\n"
+        "class Slow:\n"
+        "    def __init__(self, stream): self.stream = stream\n"
+        "    def write(self, text): time.sleep(0.1); return self.stream.write(text)\n"
+        "    def flush(self): self.stream.flush()\n"
+        "sys.stderr = Slow(sys.stderr)\n"
+        "scope = {}\n"
+        "exec(compile('import sys\\nframe = sys._getframe()', '<frozen importlib._bootstrap>',"
+        " 'exec'), scope)\n"
+        "@cli.entry('t')\n"
+        "def main(argv=None):\n"
+        "    signals.working()\n"
+        "    signals._handle(signal.SIGINT, scope['frame'])  # in an import: retried 20 ms on\n"
+        "    interrupt.check()  # the engines stopped first\n"
+        "    return 0\n"
+        "sys.exit(main())\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    lines = [line for line in run.stderr.splitlines() if line.strip()]
+    assert (run.returncode, lines) == (130, ["t: interrupted"]), run.stderr

@@ -16,6 +16,9 @@ import os
 import select
 import signal
 import threading
+from typing import NoReturn
+
+from mjx_peg import signals
 
 _REQUESTED = threading.Event()
 
@@ -34,9 +37,17 @@ def clear() -> None:
 
 
 def check() -> None:
-    """KeyboardInterrupt if a stop was requested."""
+    """KeyboardInterrupt if a stop was requested (`stop`)."""
     if _REQUESTED.is_set():
-        raise KeyboardInterrupt
+        stop()
+
+
+def stop() -> NoReturn:
+    """Raise the requested stop as KeyboardInterrupt, the command's signal handling told first
+    (`signals.unwinding`): the signal's own handler, retrying after an unsafe frame, must not
+    raise a second one while the command unwinds."""
+    signals.unwinding()
+    raise KeyboardInterrupt
 
 
 class _Quiet(logging.Filter):

@@ -264,7 +264,7 @@ def train(
                     replicated, trials, metrics = step(replicated)
                 except Exception:  # the host callback's KeyboardInterrupt, as JAX raises it
                     if interrupt.requested():
-                        raise KeyboardInterrupt from None
+                        interrupt.stop()
                     raise
             # [local devices, all devices, trials per device]: every local copy is the same
             trials = {k: v.reshape(-1) for k, v in ppo.unreplicate(trials).items()}
