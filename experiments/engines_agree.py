@@ -1,14 +1,15 @@
 """Sim-to-sim check: the same specs and parameters on the mujoco and mjx engines.
 
     python experiments/engines_agree.py [--trials 100] [--time-limit 4] [--batch 25]
-        [--skill paper|spiral] [--policy baseline|quick|...] [--out F.npz]
+        [--skill spiral|paper] [--policy paper|baseline|quick|...] [--out F.npz]
 
 Prints the fraction of trials with the same outcome (of all, and of those that ended within the
 time limit on the mujoco engine), the median times to complete of the trials both engines
 completed, and the final tip distance between the engines. For scale it also runs the mujoco
 engine on the same specs with every hole moved by --nudge-m (default 1e-9 m): how often that
-alone flips an outcome. --skill and --policy: the skill and the controller's 38 numbers (the
-hand-tuned baseline, or a policy's vectors for each trial). --out saves both engines' per-trial
+alone flips an outcome. --skill and --policy: the skill and the controller's numbers (a
+policy's vectors for each trial, or the hand-tuned baseline); by default the shipped ones, the
+spiral and `paper`. --out saves both engines' per-trial
 results (.npz).
 """
 
@@ -52,8 +53,8 @@ def main(argv=None) -> None:
     p.add_argument("--angular-deg", type=float, default=4.0)
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--nudge-m", type=float, default=1e-9, help="hole shift of the C-vs-C check")
-    p.add_argument("--skill", default="paper", choices=tuple(SKILLS))
-    p.add_argument("--policy", default="baseline", help="'baseline', a shipped policy or a run")
+    p.add_argument("--skill", default="spiral", choices=tuple(SKILLS))
+    p.add_argument("--policy", default="paper", help="'baseline', a shipped policy or a run")
     p.add_argument("--out", help="save per-trial results of both engines to this .npz")
     args = p.parse_args(argv)
     specs = agreement_specs(

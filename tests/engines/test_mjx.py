@@ -12,17 +12,22 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.mark.slow
 def test_engines_agree(tmp_path, capsys):
-    """C MuJoCo and MJX give the same outcomes on the same 8 specs (sim-to-sim check), run by
+    """C MuJoCo and MJX give the same outcomes on the same 8 specs (sim-to-sim check) with the
+    shipped skill and policy (the spiral, `paper`'s vectors), run by
     `experiments/engines_agree.py` in this process: the script's smoke test too, one MJX compile.
 
     MJX on this CPU compiles in about 40 s and then steps the whole batch, every slot until the
     last trial ends, at about 8 batch steps/s whatever the batch's size: one batch of trials
-    that all end early is the cheapest check. Under the board model these 8 insert on the C
-    engine at 1.38-1.42 s (the 2 s limit is headroom).
-    At larger errors contact-heavy trials part between the engines (`experiments/engines_agree.py`
-    with more trials measures by how much). The F/T pipeline itself is the same function on
-    both (tests/engines/test_period.py, tests/skill/test_sensor.py); here both engines must
-    report a peak sensed force of the same size.
+    that all end early is the cheapest check. These 8 (circle and square, +-1.5 mm / +-2 deg)
+    insert on the C engine at 0.92-2.21 s, five of them after contact (peak forces 57-105 N);
+    the 2.5 s limit is headroom. At larger errors more trials part between the engines
+    (`experiments/engines_agree.py --trials 48 ...` measures by how much: BENCHMARKS.md). The
+    F/T pipeline itself is the same function on both (tests/engines/test_period.py,
+    tests/skill/test_sensor.py); here both engines must report peak sensed forces of the same
+    size and chatter of the same size (the spiral's press chatters more than the paper's skill:
+    up to 3.8 N here on C MuJoCo, 6.5 N on MJX for the same trial). The paper's skill runs the
+    same physics; its control period in JAX is checked against NumPy in
+    tests/skill/test_control_step.py and tests/engines/test_compiled.py.
     """
     spec = importlib.util.spec_from_file_location(
         "engines_agree", ROOT / "experiments" / "engines_agree.py"
@@ -30,9 +35,9 @@ def test_engines_agree(tmp_path, capsys):
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     out = tmp_path / "agree.npz"
-    script.main(["--trials", "8", "--time-limit", "2", "--batch", "8", "--shapes", "square",
-                 "--linear-mm", "1.5", "--angular-deg", "2", "--seed", "2",
-                 "--out", str(out)])  # fmt: skip
+    script.main(["--trials", "8", "--time-limit", "2.5", "--batch", "8", "--shapes",
+                 "circle,square", "--linear-mm", "1.5", "--angular-deg", "2", "--seed", "2",
+                 "--skill", "spiral", "--policy", "paper", "--out", str(out)])  # fmt: skip
     text = capsys.readouterr().out
     assert "same outcome on" in text and "mujoco vs mujoco with holes moved" in text
     with np.load(out) as saved:
@@ -47,4 +52,7 @@ def test_engines_agree(tmp_path, capsys):
         peak_cpu, peak_acc = saved["mujoco_peak_force"], saved["mjx_peak_force"]
         assert np.all(peak_cpu > 1.0) and np.all(peak_acc > 1.0)
         assert abs(np.median(peak_acc) / np.median(peak_cpu) - 1.0) < 0.25
-        assert np.all(saved["mjx_chatter"] < 5.0) and np.all(saved["mujoco_chatter"] < 5.0)
+        # chatter (N; mean |dF| over a trial's last second): of the same size, none runaway
+        chatter_cpu, chatter_acc = saved["mujoco_chatter"], saved["mjx_chatter"]
+        assert abs(np.median(chatter_acc) / np.median(chatter_cpu) - 1.0) < 0.35
+        assert np.all(chatter_cpu < 10.0) and np.all(chatter_acc < 10.0)
