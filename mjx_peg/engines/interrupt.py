@@ -1,9 +1,10 @@
-"""A Ctrl-C for engine calls that run where the signal cannot reach: JAX host callbacks.
+"""A Ctrl-C or SIGTERM for engine calls that run where the signal cannot reach: JAX host callbacks.
 
-Python delivers SIGINT to the main thread between bytecodes; while that thread waits in a
+Python delivers a signal to the main thread between bytecodes; while that thread waits in a
 jitted computation (the trainer's PPO iteration, whose environment runs the CPU engine in a
-`jax.pure_callback` on another thread), it would act only when the iteration ends. A caller
-that installs its own SIGINT handler calls `request()` there: every running CPU-engine call
+`jax.pure_callback` on another thread), it would act only when the iteration ends
+(`on_stop_signals` acts at once). A caller that installs its own handler calls `request()`
+there: every running CPU-engine call
 stops at its lanes' next control period (or the process pool's next poll, 50 ms) and raises
 KeyboardInterrupt, which ends the computation with an error at once.
 """
@@ -56,11 +57,12 @@ class _Quiet(logging.Filter):
 
 
 @contextlib.contextmanager
-def on_sigint():
-    """While the block runs, Ctrl-C also calls `request()`, even while the main thread waits in
-    compiled code: CPython's C-level handler writes the signal to a wakeup fd
-    (`signal.set_wakeup_fd`) at once, and a watcher thread reads it. The usual
-    KeyboardInterrupt still follows in the main thread. Outside the main thread, a no-op."""
+def on_stop_signals():
+    """While the block runs, Ctrl-C (SIGINT) and SIGTERM also call `request()`, even while the
+    main thread waits in compiled code: CPython's C-level handler writes the signal to a wakeup
+    fd (`signal.set_wakeup_fd`) at once, and a watcher thread reads it. The usual
+    KeyboardInterrupt (`signals.Terminated`) still follows in the main thread. Outside the main
+    thread, a no-op."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -71,8 +73,10 @@ def on_sigint():
 
     def watch():
         while not done.is_set():
-            if select.select([read], [], [], 0.1)[0] and signal.SIGINT in os.read(read, 64):
-                request()
+            if select.select([read], [], [], 0.1)[0]:
+                received = os.read(read, 64)
+                if signal.SIGINT in received or signal.SIGTERM in received:
+                    request()
 
     watcher = threading.Thread(target=watch, name="sigint-watcher", daemon=True)
     watcher.start()

@@ -259,7 +259,7 @@ def train(
     try:
         while int(state.iteration) < config.iterations:
             t0 = time.monotonic()
-            with interrupt.on_sigint():  # Ctrl-C stops the iteration's trials at once
+            with interrupt.on_stop_signals():  # Ctrl-C or SIGTERM: its trials stop at once
                 try:
                     replicated, trials, metrics = step(replicated)
                 except Exception:  # the host callback's KeyboardInterrupt, as JAX raises it
