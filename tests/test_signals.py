@@ -159,11 +159,22 @@ def test_a_finished_command_is_told_from_one_still_working_by_its_signal_masks()
     assert not signals.taken(child.pid) and not signals.done(child.pid)
 
 
+def _run_command(source: str) -> tuple[int, list[str], str]:
+    """Run `source` as a program with SIGINT at its default: (exit status, stderr's lines,
+    stdout)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run(
+        [sys.executable, "-c", source], env=env, capture_output=True, text=True, timeout=60,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    return run.returncode, [line for line in run.stderr.splitlines() if line.strip()], run.stdout
+
+
 def test_a_signal_while_a_command_closes_after_its_work_is_one_line_and_130():
     """Main has returned and the command stops its workers: a Ctrl-C that lands there is not
     raised out of the closing (a traceback, then death by SIGINT) but ends the command as
     stopped, in one line."""
-    code = (
+    source = (
         "import os, signal, sys, time, types\n"
         "from mjx_peg import cli, signals\n"
         "workers = types.ModuleType('mjx_peg.engines.processes')\n"
@@ -179,20 +190,15 @@ def test_a_signal_while_a_command_closes_after_its_work_is_one_line_and_130():
         "    return 0\n"
         "sys.exit(main())\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    run = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )  # fmt: skip
-    lines = [line for line in run.stderr.splitlines() if line.strip()]
-    assert (run.returncode, lines, run.stdout) == (130, ["t: interrupted"], "closed\n"), run.stderr
+    code, lines, out = _run_command(source)
+    assert (code, lines, out) == (130, ["t: interrupted"], "closed\n"), lines
 
 
 def test_a_retried_signal_after_the_engines_stop_raised_is_not_raised_again():
     """A Ctrl-C that came in an unsafe frame is raised again 20 ms later; if the engines' stop
     request raised KeyboardInterrupt first, the retry must not raise a second one while the
     command prints its line and closes (it did: a traceback, then death by SIGINT)."""
-    code = (
+    source = (
         "import signal, sys, time\n"
         "from mjx_peg import cli, signals\n"
         "from mjx_peg.engines import interrupt\n"
@@ -212,10 +218,5 @@ def test_a_retried_signal_after_the_engines_stop_raised_is_not_raised_again():
         "    return 0\n"
         "sys.exit(main())\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    run = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )  # fmt: skip
-    lines = [line for line in run.stderr.splitlines() if line.strip()]
-    assert (run.returncode, lines) == (130, ["t: interrupted"]), run.stderr
+    code, lines, _ = _run_command(source)
+    assert (code, lines) == (130, ["t: interrupted"]), lines
