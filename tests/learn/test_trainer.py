@@ -3,6 +3,7 @@ from another run's policy, and runs on two devices or two processes."""
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -176,8 +177,10 @@ def test_distributed_two_local_processes(tmp_path, tiny_args):
     outputs = [p.communicate(timeout=600) for p in procs]
     for p, (_, stderr) in zip(procs, outputs, strict=True):
         assert p.returncode == 0, stderr[-2000:]
-    # both processes took part in every iteration and agree on the result
-    assert outputs[0][0].splitlines()[-1] == outputs[1][0].splitlines()[-1]
+    # both processes took part in every iteration and agree on the result (each reports its
+    # own wall time: "in 3 iterations, 0.2 min" on one, 0.3 on the other under load)
+    last = [re.sub(r"\d+\.\d+ min", "T min", out.splitlines()[-1]) for out, _ in outputs]
+    assert last[0] == last[1]
     assert read_table(out / "metrics.csv")["trials"] == [16.0, 32.0, 48.0]
     assert len(read_table(out / "trials.csv")["trial"]) == 48
     assert load_policy(out).manifest["finished"]
