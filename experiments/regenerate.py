@@ -5,8 +5,8 @@ When the trial or the spiral skill changes, every number of it on the results pa
 (`experiments/ship_policy.py`, at HEAD), the spiral grids under docs/eval/ (`paper-small` at 50
 mm, the triangle before and after transfer, 25 and 60 mm, the flange model, the baseline), the
 500- and 1,500-trial contact sets, the paper's skill on the 500, zero error, the sensor and
-friction variants, the simulated arm, the parts suite, vision to action, and the nominal
-350-range grid last.
+friction variants, the simulated arm, the parts suite, the paper's UR5e table on the simulated
+arm, vision to action, and the nominal 350-range grid last.
 `policies/paper` is not retrained (`python train.py --preset paper`, ~22 min here, is a decision
 of its own); its manifest records again that it runs the spiral skill, with the spiral's
 constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
@@ -142,10 +142,13 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
             arm.append(Step(name, argv, 35, f"{results}/arm/{name}"))
     parts = Step("parts", (py, "experiments/parts_suite.py", "--policy", "baseline", "--policy",
                            "paper", "--out", f"{results}/parts"), 2700, f"{results}/parts")
+    ur5e = Step("ur5e_table", (py, "experiments/ur5e_table.py", *paper, "--policy-for",
+                               "triangle=transfer", "--out", f"{results}/ur5e_table"), 2400,
+                f"{results}/ur5e_table")
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
                              "docs/vision/act"), 310, "docs/vision/act")
     nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
-    return [*train, *grids, *sets, zero, *arm, parts, vision, nominal]
+    return [*train, *grids, *sets, zero, *arm, parts, ur5e, vision, nominal]
     # fmt: on
 
 
