@@ -9,8 +9,7 @@ completed, and the final tip distance between the engines. For scale it also run
 engine on the same specs with every hole moved by --nudge-m (default 1e-9 m): how often that
 alone flips an outcome. --skill and --policy: the skill and the controller's numbers (a
 policy's vectors for each trial, or the hand-tuned baseline); by default the shipped ones, the
-spiral and `paper`. --out saves both engines' per-trial
-results (.npz).
+spiral and `paper`. --out saves both engines' per-trial results (.npz).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ of its own); its manifest records again that it runs the spiral skill, with the 
 constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
 its commands.
 
-    python experiments/regenerate.py                       # everything, ~155 min on 2 cores
+    python experiments/regenerate.py                       # everything, ~195 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 32 min nominal grid
