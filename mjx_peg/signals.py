@@ -160,14 +160,15 @@ def working() -> None:
     _working = True
 
 
-def _mask(pid: int, field: str) -> int:
-    """A signal mask of process `pid` from /proc/PID/status (`SigCgt`, `SigIgn`; 0 elsewhere)."""
+def _sigterm_in(pid: int, mask: str) -> bool:
+    """Whether SIGTERM is in the signal mask `mask` (`SigCgt`: caught, `SigIgn`: ignored) of
+    process `pid` (Linux: /proc/PID/status; False elsewhere)."""
     try:
         with open(f"/proc/{pid}/status") as f:
-            line = next((line for line in f if line.startswith(f"{field}:")), f"{field}: 0")
+            line = next((line for line in f if line.startswith(f"{mask}:")), f"{mask}: 0")
     except OSError:
-        return 0
-    return int(line.split()[1], 16)
+        return False
+    return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
 
 
 def unwinding() -> None:
@@ -184,13 +185,13 @@ def unwinding() -> None:
 def taken(pid: int) -> bool:
     """Whether process `pid` has a handler for SIGTERM, which Python alone never installs: a
     program of this package has taken its signals (Linux: /proc/PID/status; False elsewhere)."""
-    return bool(_mask(pid, "SigCgt") >> (signal.SIGTERM - 1) & 1)
+    return _sigterm_in(pid, "SigCgt")
 
 
 def done(pid: int) -> bool:
     """Whether process `pid`, having taken its signals, now ignores SIGTERM: its command has
     ended (`finished`) and the process is exiting (Linux; False elsewhere)."""
-    return bool(_mask(pid, "SigIgn") >> (signal.SIGTERM - 1) & 1)
+    return _sigterm_in(pid, "SigIgn")
 
 
 def received() -> int | None:

@@ -4,9 +4,9 @@ Python delivers a signal to the main thread between bytecodes; while that thread
 jitted computation (the trainer's PPO iteration, whose environment runs the CPU engine in a
 `jax.pure_callback` on another thread), it would act only when the iteration ends
 (`on_stop_signals` acts at once). A caller that installs its own handler calls `request()`
-there: every running CPU-engine call
-stops at its lanes' next control period (or the process pool's next poll, 50 ms) and raises
-KeyboardInterrupt, which ends the computation with an error at once.
+there: every running CPU-engine call stops at its lanes' next control period (or the process
+pool's next poll, 50 ms) and raises KeyboardInterrupt, which ends the computation with an error
+at once.
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def on_stop_signals():
                 if signal.SIGINT in received or signal.SIGTERM in received:
                     request()
 
-    watcher = threading.Thread(target=watch, name="sigint-watcher", daemon=True)
+    watcher = threading.Thread(target=watch, name="stop-signal-watcher", daemon=True)
     watcher.start()
     # JAX logs the callback's KeyboardInterrupt with its traceback: not news after a Ctrl-C.
     callbacks = logging.getLogger("jax._src.callback")
