@@ -189,6 +189,17 @@ def time_mjx(specs, params, config, batch):
     return result, elapsed, first - elapsed, jax.devices()[0].device_kind
 
 
+def _commit() -> str:
+    """The checkout's short commit, '+' where its tracked files differ from it."""
+    import subprocess
+
+    def git(*argv):
+        return subprocess.run(["git", *argv], cwd=ROOT, capture_output=True, text=True).stdout
+
+    head = git("rev-parse", "--short", "HEAD").strip() or "unknown"
+    return head + ("+" if git("status", "--porcelain", "--untracked-files=no").strip() else "")
+
+
 def _row(*cells):
     out = []
     for c in cells:
@@ -228,10 +239,12 @@ def main() -> None:
     specs = sample_trials(task, 0, args.trials)
     params = as_controller_params(baseline_params(), len(specs))
     warm = specs.take(np.arange(4))
-    for name in passes:  # warm-up: the compiled programs of every slot count used below
+    for name in passes:  # warm-up: the compiled programs of every config and slot count below
         for threads in sorted({1, args.threads}):
-            cpu_engine.run_on_cpu(warm, params, full, threads=threads, compiled=PASSES[name],
-                                  slots_per_thread=-(-len(specs) // threads))  # fmt: skip
+            for config in (full, full.replace(end_settled=True)):
+                cpu_engine.run_on_cpu(warm, params, config, threads=threads,
+                                      compiled=PASSES[name],
+                                      slots_per_thread=-(-len(specs) // threads))  # fmt: skip
         cpu_engine.run_on_cpu(warm, params, full, processes=args.threads, compiled=PASSES[name],
                               slots_per_thread=-(-len(specs) // args.threads))  # fmt: skip
 
@@ -304,14 +317,17 @@ def main() -> None:
     print(table)
     print("\n".join(notes))
     if args.write:
+        mjx = f" ({args.mjx_time_limit:g} s for mjx)" if args.mjx_trials else ""
         section = (
-            f"## Trial engines\n\nBaseline parameters, the {args.skill} skill, {args.shapes} "
-            f"50 mm, errors ±3 mm / ±4 deg, {args.time_limit:g} s limit "
-            f"({args.mjx_time_limit:g} s for mjx). Physics steps/s counts only steps of live "
+            f"## Trial engines\n\nMeasured {time.strftime('%Y-%m-%d')} at commit {_commit()}. "
+            f"Baseline parameters, the {args.skill} skill, {args.shapes} 50 mm, errors ±3 mm / "
+            f"±4 deg, {args.time_limit:g} s limit{mjx}. Physics steps/s counts only steps of live "
             "trials; the ceiling replays the engine's own states with bare `mj_step` on as many "
-            "processes. Command: `python "
-            f"benchmarks/trials.py --write` (--trials {args.trials}, --threads {args.threads}, "
-            f"--mjx-trials {args.mjx_trials}).\n\n{table}\n\n"
+            "processes. Command: `python benchmarks/trials.py --write` (--trials "
+            f"{args.trials}, --threads {args.threads}, --time-limit {args.time_limit:g}, "
+            f"--repeat {args.repeat}, --mjx-trials {args.mjx_trials}).\n\n{table}\n\n"
+            + "\n".join(f"- {note}" for note in notes if not note.startswith((" ", "profile")))
+            + "\n\n"
         )
         write_section(ROOT / "BENCHMARKS.md", "## Trial engines", section)
 
