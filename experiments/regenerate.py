@@ -15,7 +15,7 @@ its commands.
     python experiments/regenerate.py                       # everything, ~195 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
-    python experiments/regenerate.py --skip-nominal        # all but the 32 min nominal grid
+    python experiments/regenerate.py --skip-nominal        # all but the 30 min nominal grid
 
 A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME.done and is
 skipped; a grid is removed before its first start only (a stale grid of the skill before would
@@ -147,7 +147,7 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
                 f"{results}/ur5e_table")
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
                              "docs/vision/act"), 310, "docs/vision/act")
-    nominal = grid("paper_spiral_50mm_nominal_board", 1938, *paper, "--grid", "paper")
+    nominal = grid("paper_spiral_50mm_nominal_board", 1777, *paper, "--grid", "paper")
     return [*train, *grids, *sets, zero, *arm, parts, ur5e, vision, nominal]
     # fmt: on
 
@@ -211,7 +211,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=Path("runs/regenerate"),
                    help="logs, CSVs, markers (default: runs/regenerate)")  # fmt: skip
     p.add_argument("--only", default="", help="comma-separated fnmatch patterns of step names")
-    p.add_argument("--skip-nominal", action="store_true", help="not the nominal grid (32 min)")
+    p.add_argument("--skip-nominal", action="store_true", help="not the nominal grid (30 min)")
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     p.add_argument("--results", default=RESULTS,
                    help=f"the contact sets, zero error and the arm's runs (default: {RESULTS}, "
