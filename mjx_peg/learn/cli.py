@@ -155,6 +155,14 @@ def parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
+    p.add_argument(
+        "--skill-constant",
+        action="append",
+        type=cli.skill_constant,
+        metavar="NAME=VALUE",
+        help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
+        "spiral_axial_ref=0.001); repeatable; config.json records them",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -193,6 +201,9 @@ def resolve_config(args):
         "linear_per_size": True if args.parts else None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
+    if args.skill_constant:
+        config = config.replace(skill_constants=config.skill_constants.replace(
+            **dict(args.skill_constant)))  # fmt: skip
     if args.fixed_skill:
         config = config.replace(learn_search=False)
     if args.prior is not None:

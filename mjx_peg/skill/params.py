@@ -55,7 +55,8 @@ insertion press's depth d_i and factor kappa_i, the movement's duration T. Their
 - R in [5, 50] mm (log): the localization errors' range (up to 8 mm in the paper's grids) and
   the tip's drift, to six times that;
 - v in [5, 100] mm/s (log): a turn of a 25 mm spiral in 31 down to 1.6 s;
-- kappa in [0.5, 4] (log): the press while spiralling between twice and a quarter of C_zz's;
+- kappa in [0.5, 4] (log): the press while spiralling between twice and a quarter of C_zz's
+  (with `SkillConfig.spiral_axial_ref` c_r > 0: a compliance of its own, kappa c_r);
 - k_a in [0.1, 10] rad/(N m s) (log): the alignment following a 1 N m moment by 0.1 to 10 rad/s;
 - d_a in [0, 40] mm and d_i in [10, 70] mm below the hole's estimated entrance (linear): the
   80 mm hole's depth, from its entrance to 10 mm above its exit;

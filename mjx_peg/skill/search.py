@@ -95,6 +95,10 @@ class SkillConfig:
     spiral_wait: float = 0.3  # s: t_w, the resting time before it starts
     spiral_ramp: float = 0.5  # s: T_r, the time its phase sigma takes to switch on or off
     spiral_axial: float = 2.0  # kappa: axial compliance while spiralling, times C_zz
+    # m/N: c_r. 0: kappa multiplies the compliance's own axial offset (C F)_z; > 0: while
+    # spiralling the axial offset is kappa c_r F_z, a compliance of its own that the learned and
+    # explored C does not move
+    spiral_axial_ref: float = 0.0
     spiral_lateral: float = 0.0  # c_s: lateral compliance while spiralling, times C_xx, C_yy
     spiral_centre: float = 0.25  # the centring's gain while spiralling, times k_cop
     entry_depth: float = 0.0015  # m: e, the tcp's fall below its resting height that ends it
@@ -124,6 +128,11 @@ class SkillConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise UsageError(f"SkillConfig.{name} must be a number >= 0, got {value!r}")
+        if not (math.isfinite(self.spiral_axial_ref) and 0 <= self.spiral_axial_ref <= 2e-3):
+            raise UsageError(  # up to the largest C_zz: the compliance loop's stable range
+                f"SkillConfig.spiral_axial_ref must be in [0, 2e-3] m/N, got "
+                f"{self.spiral_axial_ref!r}"
+            )
         if not (math.isfinite(self.movement_cruise) and 0 <= self.movement_cruise < 1):
             raise UsageError(
                 f"SkillConfig.movement_cruise must be in [0, 1), got {self.movement_cruise!r}"
@@ -361,7 +370,11 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
         sigma = spiral[..., 2:3]
         c_lat = c_lat + sigma * (config.spiral_lateral - c_lat)
         k_cop = k_cop * (1.0 + sigma * (config.spiral_centre - 1.0))
-        axial = axial * (1.0 + sigma * (_value(config, values, "spiral_axial") - 1.0))
+        kappa = _value(config, values, "spiral_axial")
+        if config.spiral_axial_ref > 0:  # kappa c_r F_z, whatever C is
+            axial = axial + sigma * (kappa * config.spiral_axial_ref * wrench[..., 2:3] - axial)
+        else:
+            axial = axial * (1.0 + sigma * (kappa - 1.0))
     if config.insert_axial != 1.0 and height is not None:
         depth = (ENTRANCE_HEIGHT - height)[..., None]  # below the hole's estimated entrance
         start = _value(config, values, "insert_depth")

@@ -127,3 +127,27 @@ def test_kl_target_and_std_decay_reach_the_config_and_refuse_bad_values(capsys):
         with pytest.raises(SystemExit):
             cli.parser().parse_args([flag, value])
         assert f"{flag} must be a number in (0, 1], got {value}" in capsys.readouterr().err
+
+
+def test_skill_constant_sets_one_of_the_skills_constants_and_refuses_others(capsys):
+    """--skill-constant NAME=VALUE (repeatable) changes that constant of the preset's skill and
+    no other; an unknown name or a value that is not a number is one line; a value the skill
+    refuses is the skill's own UsageError."""
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn import cli
+    from mjx_peg.skill.search import SKILLS
+
+    args = cli.parser().parse_args(["--skill-constant", "spiral_axial_ref=0.001",
+                                    "--skill-constant", "spiral_pitch=0.005"])  # fmt: skip
+    config = cli.resolve_config(args)
+    assert config.skill_constants == SKILLS["spiral"].replace(spiral_axial_ref=0.001,
+                                                              spiral_pitch=0.005)  # fmt: skip
+    refused = (("bogus=1", "NAME a constant of the skill"),
+               ("spiral_pitch", "NAME a constant of the skill"),
+               ("spiral_pitch=wide", "spiral_pitch must be a number, got 'wide'"))  # fmt: skip
+    for text, message in refused:
+        with pytest.raises(SystemExit):
+            cli.parser().parse_args(["--skill-constant", text])
+        assert message in capsys.readouterr().err
+    with pytest.raises(UsageError, match="spiral_axial_ref must be in"):
+        cli.resolve_config(cli.parser().parse_args(["--skill-constant", "spiral_axial_ref=1"]))

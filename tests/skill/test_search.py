@@ -206,6 +206,26 @@ def test_spiral_offset_moves_the_goal_with_a_lighter_press_and_a_stiffer_tip():
     np.testing.assert_array_equal(out[:, 3:], dy[:, 3:])
 
 
+def test_a_spiral_press_of_its_own_compliance_does_not_follow_c():
+    """With c_r > 0 the spiral's axial offset blends to kappa c_r F_z: two compliances whose
+    axial offsets differ tenfold press alike once the spiral is on (sigma 1), and as each one's
+    own offset before it starts (sigma 0); c_r 0 is the former kappa (C F)_z."""
+    config = SkillConfig(spiral_speed=0.01, spiral_axial=1.5, spiral_axial_ref=1e-3)
+    wrench = np.zeros((3, 6))
+    wrench[:, 2] = -20.0  # the board pushes the peg up with 20 N
+    spiral = np.array([[4.0, 0.08, 1.0], [4.0, 0.08, 0.5], [0.2, 0.08, 0.0]])
+    soft, stiff = np.zeros((3, 6)), np.zeros((3, 6))
+    soft[:, 2], stiff[:, 2] = -0.02, -0.002  # (C F)_z, m
+    a = search.searched_offset(config, soft, wrench, None, spiral)[:, 2]
+    b = search.searched_offset(config, stiff, wrench, None, spiral)[:, 2]
+    np.testing.assert_allclose([a[0], b[0]], [-0.03, -0.03], atol=1e-15)  # 1.5 x 1e-3 x -20
+    np.testing.assert_allclose([a[1], b[1]], [-0.025, -0.016], atol=1e-15)  # halfway
+    np.testing.assert_array_equal([a[2], b[2]], [-0.02, -0.002])
+    former = search.searched_offset(config.replace(spiral_axial_ref=0.0), soft, wrench, None,
+                                    spiral)[:, 2]  # fmt: skip
+    np.testing.assert_allclose(former[:2], [-0.03, -0.025], atol=1e-15)
+
+
 def test_a_search_past_its_budget_stops_and_withdraws_the_peg():
     """Past tau_b of resting the resting time runs with the clock, pressed or not; the spiral
     stays where it stopped and over T_w the goal's axial offset blends to h_w above the hole's
