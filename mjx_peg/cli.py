@@ -236,29 +236,6 @@ def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> No
     )
 
 
-def skill_constant(text: str) -> tuple[str, float | str]:
-    """argparse type of --skill-constant: (name, value) of NAME=VALUE, a SkillConfig field and
-    a number (a name for the constants that are names)."""
-    import dataclasses
-
-    from mjx_peg.skill.search import TEXT_CONSTANTS, SkillConfig
-
-    name, sep, value = str(text).partition("=")
-    name, value = name.strip(), value.strip()
-    fields = [f.name for f in dataclasses.fields(SkillConfig)]
-    if not sep or name not in fields:
-        raise argparse.ArgumentTypeError(
-            f"must be NAME=VALUE with NAME a constant of the skill ({', '.join(fields)}), got "
-            f"{_shown(text)}"
-        )
-    if name in TEXT_CONSTANTS:
-        return name, value
-    try:
-        return name, float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{name} must be a number, got {_shown(value)}") from None
-
-
 def add_grasp_model_option(parser: argparse.ArgumentParser, models, default: str | None) -> None:
     """--grasp-model: where a trial's grasp errors go (world.constants.GRASP_MODELS)."""
     parser.add_argument(

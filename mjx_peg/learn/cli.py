@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import os
 from pathlib import Path
 
@@ -158,10 +159,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--skill-constant",
         action="append",
-        type=cli.skill_constant,
+        type=skill_constant,
         metavar="NAME=VALUE",
         help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
-        "spiral_axial_ref=0.001); repeatable; config.json records them",
+        "spiral_axial_ref=0.001), each in the range SkillConfig accepts for it; repeatable; "
+        "config.json records them",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
@@ -171,6 +173,32 @@ def parser() -> argparse.ArgumentParser:
         "JAX_NUM_PROCESSES, JAX_PROCESS_ID or the cluster's own environment)",
     )
     return p
+
+
+def skill_constant(text: str) -> tuple[str, float | str]:
+    """argparse type of --skill-constant: (name, value) of NAME=VALUE, a SkillConfig field and
+    a number (a name for the constants that are names)."""
+    from mjx_peg.skill.search import TEXT_CONSTANTS, SkillConfig
+
+    name, sep, value = str(text).partition("=")
+    name, value = name.strip(), value.strip()
+    fields = [f.name for f in dataclasses.fields(SkillConfig)]
+    if not sep or name not in fields:
+        raise argparse.ArgumentTypeError(
+            f"must be NAME=VALUE with NAME a constant of the skill ({', '.join(fields)}), got "
+            f"{_quoted(text)}"
+        )
+    if name in TEXT_CONSTANTS:
+        return name, value
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name} must be a number, got {_quoted(value)}") from None
+
+
+def _quoted(text: str) -> str:
+    text = repr(text)
+    return text if len(text) <= 60 else text[:55] + "...'"
 
 
 def resolve_config(args):
