@@ -36,7 +36,8 @@ USER_ERRORS: tuple[type[BaseException], ...] = (UsageError, OSError)
 _SHOWN = 60  # characters of a bad value quoted in a message
 
 
-def _shown(text) -> str:
+def shown(text) -> str:
+    """A bad value as a message quotes it: a string's repr, a number by %g, cut to 60 characters."""
     text = repr(text) if isinstance(text, str) else f"{text:g}"
     return text if len(text) <= _SHOWN else text[: _SHOWN - 5] + "...'"
 
@@ -172,7 +173,7 @@ def integer(lo: int, hi: int, why: str = "") -> Callable[[str], int]:
             number = int(str(value).strip())
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"must be an integer in {text}, got {_shown(value)}"
+                f"must be an integer in {text}, got {shown(value)}"
             ) from None
         if not lo <= number <= hi:
             raise argparse.ArgumentTypeError(f"must be an integer in {text}, got {number}")
@@ -193,7 +194,7 @@ def number(lo: float, hi: float, unit: str, lo_open: bool = False) -> Callable[[
             x = math.nan
         ok = math.isfinite(x) and (lo < x if lo_open else lo <= x) and x <= hi
         if not ok:
-            got = _shown(value) if not math.isfinite(x) else number_text(x)
+            got = shown(value) if not math.isfinite(x) else number_text(x)
             raise argparse.ArgumentTypeError(f"must be a number in {text}, got {got}")
         return x
 
@@ -213,7 +214,7 @@ def SEED_LIST(value: str) -> tuple[int, ...]:  # noqa: N802 (a flag type, like S
     """Distinct seeds separated by commas, e.g. 0,1,2 (each a SEED)."""
     seeds = tuple(SEED(part.strip()) for part in str(value).split(","))
     if len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"must name distinct seeds, got {_shown(value)}")
+        raise argparse.ArgumentTypeError(f"must name distinct seeds, got {shown(value)}")
     return seeds
 
 
@@ -270,15 +271,15 @@ def ray_address(text: str) -> str:
     if text in ("auto", "local"):
         return text
     host, _, port = text.rpartition(":")
-    shown = _shown(text)
+    quoted = shown(text)
     if not host or not port:
-        raise argparse.ArgumentTypeError(f"must be auto, local or HOST:PORT, got {shown}")
+        raise argparse.ArgumentTypeError(f"must be auto, local or HOST:PORT, got {quoted}")
     try:
         host.strip("[]").encode("idna")  # a label over 63 characters, an empty label
     except UnicodeError:
-        raise argparse.ArgumentTypeError(f"must start with a host name, got {shown}") from None
+        raise argparse.ArgumentTypeError(f"must start with a host name, got {quoted}") from None
     if not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
-        raise argparse.ArgumentTypeError(f"must end in a port 1..65535, got {shown}")
+        raise argparse.ArgumentTypeError(f"must end in a port 1..65535, got {quoted}")
     return text
 
 

@@ -186,19 +186,15 @@ def skill_constant(text: str) -> tuple[str, float | str]:
     if not sep or name not in fields:
         raise argparse.ArgumentTypeError(
             f"must be NAME=VALUE with NAME a constant of the skill ({', '.join(fields)}), got "
-            f"{_quoted(text)}"
+            f"{cli.shown(text)}"
         )
     if name in TEXT_CONSTANTS:
         return name, value
     try:
         return name, float(value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{name} must be a number, got {_quoted(value)}") from None
-
-
-def _quoted(text: str) -> str:
-    text = repr(text)
-    return text if len(text) <= 60 else text[:55] + "...'"
+        got = cli.shown(value)
+        raise argparse.ArgumentTypeError(f"{name} must be a number, got {got}") from None
 
 
 def resolve_config(args):
