@@ -521,6 +521,16 @@ def parts_section(made_by) -> list[str]:
     ]
 
 
+def ur5e_section(made_by) -> list[str]:
+    """The paper's UR5e table in simulation (experiments/ur5e_table.py writes it)."""
+    folder = ROOT / RESULTS / "ur5e_table"
+    if not (folder / "table.md").exists():
+        return []
+    argv = made_by.get(f"{RESULTS}/ur5e_table", ["(no command recorded)"])
+    text = (folder / "table.md").read_text().rstrip("\n").split("\n")
+    return ["## The paper's UR5e table", "", *text, "", f"Command: {shell(argv)}"]
+
+
 def vision_section(made_by) -> list[str]:
     lines = []
     evals = sorted((ROOT / "docs/vision/eval").glob("*/metrics.json"))
@@ -592,7 +602,8 @@ def page() -> str:
     ]
     if part := learning_section():
         lines += ["", *part]
-    for section in (contact_section, parts_section, zero_section, arm_section, vision_section):
+    for section in (contact_section, parts_section, ur5e_section, zero_section, arm_section,
+                    vision_section):
         if part := section(made_by):
             lines += ["", *part]
     missing = [name for path, (name, _) in made.items()
