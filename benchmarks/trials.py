@@ -12,16 +12,19 @@ snapshot every `--replay-every` steps, contacts included) replayed with plain `m
 recorded torques held, no controller, on as many processes as lanes (the ceiling), and the same
 snapshots stepped by `mujoco.batch.Batch`, one step per call over `--slots` simulations at a time
 (the physics as the engine runs it: the engine's ratio to it is the share of the wall time that
-is physics). Then the engine with early ending (TrialConfig.end_settled, the default), the fixed
-cost of a call, and a profile of one lane by stage for each pass (the engine's `profile` hook,
-`lanes.PROFILE_STAGES`). The mjx engine is timed on `--mjx-trials` trials (compile time reported
-apart). `--write` replaces the "## Trial engines" section of BENCHMARKS.md.
+is physics; every engine run is paired with a `Batch.step` run just before it, and the row gives
+each pair's ratio and their median). Then the engine with early ending (TrialConfig.end_settled,
+the default), the fixed cost of a call, and a profile of one lane by stage for each pass (the
+engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx engine is timed on `--mjx-trials`
+trials (compile time reported apart). `--write` replaces the "## Trial engines" section of
+BENCHMARKS.md.
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import functools
 import multiprocessing
 import os
 import time
@@ -136,6 +139,12 @@ def replay_batch(specs, snaps, every, nthread, nsim=512):
             seconds += time.perf_counter() - begin
             steps += len(chunk) * every
     return steps / seconds
+
+
+def paired_run(specs, snaps, every, threads, run):
+    """(run(), steps/s of bare `Batch.step` on the snapshots, timed just before it)."""
+    reference = replay_batch(specs, snaps, every, threads)
+    return run(), reference
 
 
 class StageTimes:
@@ -267,19 +276,25 @@ def main() -> None:
         lanes_as = [("threads", None)] + ([("processes", threads)] if threads > 1 else [])
         for name in passes:
             for how, processes in lanes_as:
-                # Best of `--repeat`: other jobs on a shared machine come and go.
-                result, wall, cpu = min(
-                    (time_engine(specs, params, full, None if processes else threads,
-                                 PASSES[name], processes) for _ in range(args.repeat)),
-                    key=lambda run: run[1],
-                )  # fmt: skip
+                # `--repeat` runs, each paired with `Batch.step` timed just before it (this
+                # host's speed moves between runs by more than the engines differ); the rate is
+                # the fastest run's, the share of physics the median pair's.
+                engine = functools.partial(time_engine, specs, params, full,
+                                           None if processes else threads, PASSES[name],
+                                           processes)  # fmt: skip
+                pairs = [paired_run(specs, snaps, args.replay_every, threads, engine)
+                         for _ in range(args.repeat)]  # fmt: skip
+                result, wall, cpu = min((run for run, _ in pairs), key=lambda run: run[1])
+                shares = [int(run[0].steps.sum()) / run[1] / ref for run, ref in pairs]
                 steps = int(result.steps.sum())
                 rate, cpu_step = steps / wall, cpu / steps
                 walls[(name, threads, how)] = wall
                 slots = min(lanes.SLOTS_PER_THREAD, -(-len(specs) // threads))
                 cpu_text = f"; CPU {1e6 * cpu_step:.2f} µs/step" if how == "threads" else ""
-                ratio = (f"**{100 * rate / in_batch:.0f} %** of `Batch.step`, "
-                         f"{100 * rate / ceiling:.0f} % of ceiling{cpu_text}")  # fmt: skip
+                each = " / ".join(f"{100 * x:.0f}" for x in shares)
+                ratio = (f"**{100 * float(np.median(shares)):.0f} %** of `Batch.step` (pairs: "
+                         f"{each} %), {100 * rate / ceiling:.0f} % of ceiling"
+                         f"{cpu_text}")  # fmt: skip
                 batch = f"{len(specs)} ({slots} per lane)"
                 label = f"mujoco, {name} pass, lanes as {how}"
                 rows.append(_row(label, cpu_name(), batch, threads, rate, len(specs) / wall,

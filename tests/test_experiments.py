@@ -132,7 +132,8 @@ def test_trials_benchmark_prints_its_table_and_the_profile(tmp_path):
     for stage in PROFILE_STAGES:
         assert f"  {stage}: " in out
     assert "100 control periods, 4.0 trials each on average" in out  # 0.2 s, 4 slots
-    assert re.search(r"\*\*\d+ %\*\* of `Batch.step`", out)
+    # the share of physics from the one run and the Batch.step run timed just before it
+    assert re.search(r"\*\*(\d+) %\*\* of `Batch.step` \(pairs: \1 %\)", out)
 
 
 def test_the_profile_hook_sees_every_stage_and_changes_no_result():
