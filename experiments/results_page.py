@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import hashlib
 import json
 import re
@@ -338,6 +339,37 @@ def training_section() -> list[str]:
 LEARNING = "docs/design/data/learning"
 
 
+def train_command(config: dict, name: str) -> str:
+    """The train.py command that makes the runs of `config` (a seed's config.json) today: its
+    preset and start, and the update's KL and the skill's constants where they differ from what
+    those give now (an earlier run of a start whose settings have since changed)."""
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.config import TrainConfig
+
+    want = TrainConfig.from_json(config)
+    start = [] if want.preset == "quick" else ["--preset", want.preset]
+    start += [] if want.prior == "baseline" else ["--prior", want.prior]
+    start += ["--eval-every", str(want.eval_every)]
+
+    def made(extra):
+        args = cli.parser().parse_args([*start, *extra, "--seed", str(want.seed)])
+        return TrainConfig.from_json(cli.resolve_config(args).to_json())
+
+    got, extra = made([]), []
+    if got.kl_target != want.kl_target:
+        extra += ["--kl-target", f"{want.kl_target:g}"]
+    for field in dataclasses.fields(want.skill_constants):
+        value = getattr(want.skill_constants, field.name)
+        if value != getattr(got.skill_constants, field.name):
+            extra += ["--skill-constant", f"{field.name}={value:g}"]
+    if made(extra) != want:
+        raise ValueError(f"{name}: no train.py command of its preset, start, KL and skill "
+                         "constants makes its config.json")  # fmt: skip
+    head = start[:-2]  # --eval-every after --seeds, as the guides write it
+    return shlex.join(["python", "train.py", *head, "--seeds", "0,1,2", *start[-2:], *extra,
+                       "--out", f"runs/{name}"])  # fmt: skip
+
+
 def learning_section() -> list[str]:
     """The learning runs over seeds (docs/design/learning_from_scratch.md): each run's held-out
     curve and its mean on the 1,500 trials at the paper's training errors, against its start."""
@@ -373,11 +405,7 @@ def learning_section() -> list[str]:
                  f"{pct(float(last['success_rate']))} % at {int(last['trials']):,}")  # fmt: skip
         rows.append([f"`{folder.parent.name}/{folder.name}`", config["prior"],
                      f"{int(config['trials']):,}", curve, cell])  # fmt: skip
-        preset = "" if config["preset"] == "quick" else f" --preset {config['preset']}"
-        prior = "" if config["prior"] == "baseline" else f" --prior {config['prior']}"
-        name, every = folder.parent.name, config["eval_every"]
-        cmds[name] = (f"python train.py{preset}{prior} --seeds 0,1,2 --eval-every {every} "
-                      f"--out runs/{name}")  # fmt: skip
+        cmds[folder.parent.name] = train_command(config, folder.parent.name)
     header = ["run", "start", "trials", "held-out success", "the 1,500 trials, against the start"]
     listed = [f"- `{name}`: `{command}`" for name, command in cmds.items()]
     return lines + table(header, rows) + ["", "Commands:", "", *listed]
@@ -602,8 +630,14 @@ def page() -> str:
     ]
     if part := learning_section():
         lines += ["", *part]
-    for section in (contact_section, parts_section, ur5e_section, zero_section, arm_section,
-                    vision_section):
+    for section in (
+        contact_section,
+        parts_section,
+        ur5e_section,
+        zero_section,
+        arm_section,
+        vision_section,
+    ):
         if part := section(made_by):
             lines += ["", *part]
     missing = [name for path, (name, _) in made.items()

@@ -59,3 +59,25 @@ def test_the_docs_links_lead_to_files():
             if "NAME" not in path and "*" not in path and not (ROOT / path).exists():
                 missing.append(f"{doc.relative_to(ROOT)}: {path}")
     assert missing == []
+
+
+def test_a_learning_run_is_listed_with_the_command_that_makes_it_today():
+    """A run whose start has changed since (the former generic start: the update held to a KL of
+    0.01, the spiral pressing with a multiple of C_zz) is listed with the flags that make it now,
+    and the command of each shipped run resolves to that run's config."""
+    import json
+
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from results_page import train_command
+
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.config import TrainConfig
+
+    former = json.loads((ROOT / "docs/design/data/learning/scratch/seed-0/config.json").read_text())
+    command = train_command(former, "scratch")
+    assert "--kl-target 0.01 --skill-constant spiral_axial_ref=0 --out runs/scratch" in command
+    argv = command.split()[2:]
+    seeds = argv.index("--seeds")
+    args = cli.parser().parse_args(argv[:seeds] + argv[seeds + 2 :] + ["--seed", "0"])
+    made = TrainConfig.from_json(cli.resolve_config(args).to_json())
+    assert made == TrainConfig.from_json(former)

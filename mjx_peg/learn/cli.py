@@ -225,16 +225,18 @@ def resolve_config(args):
         "linear_per_size": True if args.parts else None,
     }
     config = PRESETS[args.preset].replace(**{k: v for k, v in overrides.items() if v is not None})
+    if args.prior is not None:
+        if args.prior == "none" and args.action_map == "centred":
+            raise UsageError("--prior none starts mid-range under the sigmoid map; the centred "
+                             "map is centred on the hand-tuned skill")  # fmt: skip
+        start = prior_settings(args.prior, config.skill_constants)
+        # what the command line sets itself wins over the start's settings
+        config = config.replace(**{k: v for k, v in start.items() if overrides.get(k) is None})
     if args.skill_constant:
         config = config.replace(skill_constants=config.skill_constants.replace(
             **dict(args.skill_constant)))  # fmt: skip
     if args.fixed_skill:
         config = config.replace(learn_search=False)
-    if args.prior is not None:
-        if args.prior == "none" and args.action_map == "centred":
-            raise UsageError("--prior none starts mid-range under the sigmoid map; the centred "
-                             "map is centred on the hand-tuned skill")  # fmt: skip
-        config = config.replace(**prior_settings(args.prior))
     if args.preset == "transfer" and not config.init_from:
         raise UsageError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:

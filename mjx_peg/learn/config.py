@@ -333,24 +333,36 @@ class TrainConfig:
 # (every number mid-range of its physical range), the mean head's kernel shrunk so that the
 # first policy is that controller for every observation, and what learning from there needs
 # (docs/design/learning_from_scratch.md): exploration across the ranges, updates held to a
-# KL, observation statistics of the task's contexts.
+# KL three times the hand-tuned start's, observation statistics of the task's contexts.
 GENERIC_START = {
     "prior": "none",
     "action_map": "sigmoid",
     "head_init_scale": 0.01,
     "joint_stiffness": True,
     "init_noise_std": 1.0,
+    "kl_target": 0.03,
 }
 HAND_TUNED_START = {"prior": "baseline", "action_map": "centred", "head_init_scale": 1.0,
-                    "joint_stiffness": False, "init_noise_std": 0.4}  # fmt: skip
+                    "joint_stiffness": False, "init_noise_std": 0.4, "kl_target": 0.01}  # fmt: skip
+# m/N: a generic start's press while spiralling, a compliance of its own
+# (SkillConfig.spiral_axial_ref: kappa c_r F_z) at the middle of C_zz's physical range rather
+# than a multiple of the learned and explored C_zz (docs/design/learning_from_scratch.md)
+GENERIC_PRESS_REF = 1e-3
 
 
-def prior_settings(prior: str) -> dict:
+def prior_settings(prior: str, skill_constants: SkillConfig | None = None) -> dict:
     """The TrainConfig changes of a start (`--prior`): "baseline", the hand-tuned skill, or
-    "none", GENERIC_START."""
+    "none", GENERIC_START and, for a skill that spirals (`skill_constants`, where given) and
+    whose press has no compliance of its own yet, GENERIC_PRESS_REF."""
     if prior not in PRIORS:
         raise UsageError(f"unknown prior {prior!r}: choose from {', '.join(PRIORS)}")
-    return dict(GENERIC_START if prior == "none" else HAND_TUNED_START)
+    if prior == "baseline":
+        return dict(HAND_TUNED_START)
+    changes = dict(GENERIC_START)
+    constants = skill_constants
+    if constants is not None and constants.spiral_speed > 0 and constants.spiral_axial_ref == 0:
+        changes["skill_constants"] = constants.replace(spiral_axial_ref=GENERIC_PRESS_REF)
+    return changes
 
 
 # The paper's training conditions (section 5.2; friction 0.2-0.9 is TaskConfig's default), with

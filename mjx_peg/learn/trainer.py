@@ -157,6 +157,7 @@ def _draw_curve(run: RunDir, config: TrainConfig) -> None:
 
 
 def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished: bool):
+    """policy.npz and manifest.json of `state` in `run`'s folder."""
     norm = state.normalizer_params
     save_policy(
         run.path,
@@ -360,6 +361,26 @@ def train(
     )
 
 
+def export_checkpoint(run_dir, iteration: int, out) -> int:
+    """The policy of `run_dir`'s checkpoint after `iteration` exported to the folder `out` as the
+    trainer exports a run (config.json, policy.npz, manifest.json; marked unfinished), so that
+    evaluation and the arm run it; returns the trials it had trained on. A run keeps its last
+    few checkpoints: UsageError names those it keeps."""
+    run = RunDir(run_dir)
+    config = run.read_config()
+    with run.checkpoints() as saved:
+        kept = sorted(int(p.name) for p in saved.directory.iterdir() if p.name.isdigit())
+        if iteration not in kept:
+            raise UsageError(f"{run.path} keeps the checkpoints after iterations "
+                             f"{', '.join(map(str, kept)) or 'none'}, not {iteration}")  # fmt: skip
+        state = saved.restore(ppo.init_state(config, ppo.make_networks(config)), iteration)
+    target = RunDir(out)
+    target.path.mkdir(parents=True, exist_ok=True)
+    outdir.write_atomic(target.config_path, config.dumps())
+    _export(target, config, state, finished=False)
+    return int(state.trials)
+
+
 def load_state(run_dir) -> tuple[TrainConfig, ppo.TrainingState]:
     """The config and the latest checkpointed TrainingState of a run directory."""
     run = RunDir(run_dir)
@@ -370,4 +391,4 @@ def load_state(run_dir) -> tuple[TrainConfig, ppo.TrainingState]:
         return config, saved.restore(ppo.init_state(config, ppo.make_networks(config)))
 
 
-__all__ = ["InsertionEnv", "TrainSummary", "load_state", "train"]
+__all__ = ["InsertionEnv", "TrainSummary", "export_checkpoint", "load_state", "train"]

@@ -129,6 +129,27 @@ def test_kl_target_and_std_decay_reach_the_config_and_refuse_bad_values(capsys):
         assert f"{flag} must be a number in (0, 1], got {value}" in capsys.readouterr().err
 
 
+def test_a_generic_start_takes_the_larger_step_and_the_press_of_its_own_unless_told_otherwise():
+    """--prior none: the update held to a KL of 0.03 and, where the skill spirals, the spiral's
+    press a compliance of its own (GENERIC_PRESS_REF); what the command line sets itself wins,
+    so the former generic start stays one command away."""
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.config import GENERIC_PRESS_REF
+
+    def resolve(*argv):
+        return cli.resolve_config(cli.parser().parse_args(["--preset", "paper", *argv]))
+
+    generic = resolve("--prior", "none")
+    press = generic.skill_constants.spiral_axial_ref
+    assert (generic.kl_target, press) == (0.03, GENERIC_PRESS_REF)
+    former = resolve("--prior", "none", "--kl-target", "0.01", "--skill-constant",
+                     "spiral_axial_ref=0")  # fmt: skip
+    assert (former.kl_target, former.skill_constants.spiral_axial_ref) == (0.01, 0.0)
+    assert resolve("--prior", "none", "--skill", "paper").skill_constants.spiral_axial_ref == 0.0
+    for hand_tuned in (resolve(), resolve("--prior", "baseline")):
+        assert (hand_tuned.kl_target, hand_tuned.skill_constants.spiral_axial_ref) == (0.01, 0.0)
+
+
 def test_skill_constant_sets_one_of_the_skills_constants_and_refuses_others(capsys):
     """--skill-constant NAME=VALUE (repeatable) changes that constant of the preset's skill and
     no other; an unknown name or a value that is not a number is one line; a value the skill

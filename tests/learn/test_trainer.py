@@ -52,6 +52,26 @@ def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
         assert all(npz[k].dtype == np.float32 for k in npz.files)
 
 
+def test_a_kept_checkpoint_exports_the_policy_the_run_had_then(tiny_run, tmp_path):
+    """export_checkpoint: the last checkpoint's export is the run's own policy (marked
+    unfinished); an iteration the run does not keep is one line naming those it keeps."""
+    import pytest
+
+    from mjx_peg.errors import UsageError
+    from mjx_peg.learn.trainer import export_checkpoint
+
+    out, _ = tiny_run
+    assert export_checkpoint(out, 3, tmp_path / "at-3") == 48
+    with np.load(out / "policy.npz") as ran, np.load(tmp_path / "at-3" / "policy.npz") as got:
+        assert sorted(ran.files) == sorted(got.files)
+        assert all(np.array_equal(ran[k], got[k]) for k in ran.files)
+    manifest = json.loads((tmp_path / "at-3" / "manifest.json").read_text())
+    assert (manifest["finished"], manifest["trials"]) == (False, 48)
+    with pytest.raises(UsageError, match="keeps the checkpoints after iterations 3, not 1"):
+        export_checkpoint(out, 1, tmp_path / "at-1")
+    assert not (tmp_path / "at-1").exists()
+
+
 def test_init_from_a_shipped_policy_starts_at_its_actions():
     """A run without checkpoints (policies/paper) starts from its exported mean path and
     observation statistics, counted as its trials; the exploration std and the critic fresh."""
