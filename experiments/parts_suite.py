@@ -1,8 +1,8 @@
 """The parts suite: a family of parts beyond the paper's, each with its errors scaled to its size.
 
     python experiments/parts_suite.py --policy baseline --policy paper [--policy NAME=RUN_DIR]
-        [--trials 300] [--seed 0] [--part-scale absolute|size] [--only PART,...]
-        [--out docs/results/parts]
+        [--trials 300] [--seed 0] [--part-scale absolute|size] [--skill-constant NAME=VALUE]
+        [--only PART,...] [--out docs/results/parts]
 
 The suite (`world/family.py` SUITE) spans the five shapes, sizes 10-80 mm and both clearance
 classes (the paper's fits and tight ones, `world/parts.py`); its held-out parts are in no
@@ -41,6 +41,7 @@ from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.evaluation.runner import load_controller
+from mjx_peg.learn.cli import skill_constant
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import PART_SCALES, constants_record, named_skill
@@ -72,13 +73,14 @@ controller_of = functools.cache(lambda policy: load_controller(policy)[1])
 policy_of = functools.cache(load_policy)
 
 
-def policy_skill(policy: str, part_scale: str | None):
-    """The skill a policy runs in the suite: its manifest's (the baseline: the spiral)."""
+def policy_skill(policy: str, part_scale: str | None, changes=()):
+    """The skill a policy runs in the suite: its manifest's (the baseline: the spiral), with
+    `changes` ((name, value) pairs of `--skill-constant`) to its constants."""
     skill = named_skill("spiral") if policy == "baseline" else policy_of(policy).skill
     config = skill.config
     if part_scale is not None:
         config = config.replace(part_scale=part_scale)
-    return config
+    return config.replace(**dict(changes))
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -95,8 +97,8 @@ def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[di
             return rows
     specs = sample_trials(part_task(part), part_seed(args.seed, part), trials)
     controller = controller_of(policy)
-    config = TrialConfig(time_limit_s=args.time_limit,
-                         search=policy_skill(policy, args.part_scale))  # fmt: skip
+    search = policy_skill(policy, args.part_scale, args.skill_constant)
+    config = TrialConfig(time_limit_s=args.time_limit, search=search)
     result = run_trials(specs, controller(specs), engine="mujoco", config=config,
                         progress=progress)  # fmt: skip
     arrays = result.to_arrays()
@@ -122,7 +124,8 @@ def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[di
 def check_folder(folder: Path, given: str, policy: str, args) -> None:
     """OUT/LABEL/suite.json records what its CSVs ran (the policy as the command named it);
     another policy, skill or set of trials there is refused rather than mixed in."""
-    record = dict(policy=given, skill=constants_record(policy_skill(policy, args.part_scale)),
+    record = dict(policy=given, skill=constants_record(policy_skill(policy, args.part_scale,
+                                                       args.skill_constant)),
                   trials=args.trials, seed=args.seed, linear_mm_at_50=LINEAR_MM_AT_50,
                   angular_deg=ANGULAR_DEG, time_limit_s=args.time_limit)  # fmt: skip
     path = folder / "suite.json"
@@ -236,6 +239,9 @@ def main(argv=None) -> int:
         default=None,
         help="the spiral's lengths absolute or scaled with S (default: the skill's)",
     )
+    p.add_argument("--skill-constant", action="append", default=[], type=skill_constant,
+                   metavar="NAME=VALUE", help="one of the skill's constants set for every "
+                   "policy (repeatable; recorded in OUT/LABEL/suite.json)")  # fmt: skip
     p.add_argument("--only", default="", help="comma-separated part names (default: every one)")
     p.add_argument("--out", type=Path, default=Path("docs/results/parts"))
     args = p.parse_args(argv)

@@ -2,6 +2,7 @@
 so that none can rot."""
 
 import csv
+import json
 import re
 import subprocess
 import sys
@@ -304,3 +305,12 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
         done.returncode != 0
         and "holds the suite of another run (its policy differs)" in done.stderr
     )
+    # a constant of the skill changed for every policy is recorded, and refused beside another
+    changed = ["--skill-constant", "spiral_pitch=0.002"]
+    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
+                           "baseline", *changed, *map(str, tiny)], capture_output=True, text=True,
+                          cwd=ROOT)  # fmt: skip
+    assert done.returncode != 0 and "(its skill differs)" in done.stderr
+    run_script("experiments/parts_suite.py", "--policy", "pitch=baseline", *changed, *tiny)
+    record = json.loads((out / "pitch" / "suite.json").read_text())
+    assert record["skill"]["spiral_pitch"] == 0.002
