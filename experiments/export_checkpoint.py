@@ -8,7 +8,7 @@ checkpoints (every minute of training and the last iteration). This writes OUT/c
 policy.npz and manifest.json (marked unfinished, with the trials it had trained on) from the
 checkpoint after `--iteration`, so that eval.py, the experiments and the arm run the policy as it
 was then, e.g. within a budget of trials that the run's iterations overshoot. An iteration the run
-no longer keeps is one line naming those it keeps.
+no longer keeps, or an OUT that is not a new or empty folder, is one line.
 """
 
 from __future__ import annotations

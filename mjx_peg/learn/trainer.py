@@ -365,8 +365,10 @@ def export_checkpoint(run_dir, iteration: int, out) -> int:
     """The policy of `run_dir`'s checkpoint after `iteration` exported to the folder `out` as the
     trainer exports a run (config.json, policy.npz, manifest.json; marked unfinished), so that
     evaluation and the arm run it; returns the trials it had trained on. A run keeps its last
-    few checkpoints: UsageError names those it keeps."""
-    run = RunDir(run_dir)
+    few checkpoints: UsageError names those it keeps. `out` must be new or empty."""
+    run, target = RunDir(run_dir), RunDir(out)
+    if target.path.exists() and (not target.path.is_dir() or any(target.path.iterdir())):
+        raise UsageError(f"{target.path} exists and is not an empty folder: export to a new one")
     config = run.read_config()
     with run.checkpoints() as saved:
         kept = sorted(int(p.name) for p in saved.directory.iterdir() if p.name.isdigit())
@@ -374,7 +376,6 @@ def export_checkpoint(run_dir, iteration: int, out) -> int:
             raise UsageError(f"{run.path} keeps the checkpoints after iterations "
                              f"{', '.join(map(str, kept)) or 'none'}, not {iteration}")  # fmt: skip
         state = saved.restore(ppo.init_state(config, ppo.make_networks(config)), iteration)
-    target = RunDir(out)
     target.path.mkdir(parents=True, exist_ok=True)
     outdir.write_atomic(target.config_path, config.dumps())
     _export(target, config, state, finished=False)

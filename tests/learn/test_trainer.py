@@ -70,6 +70,8 @@ def test_a_kept_checkpoint_exports_the_policy_the_run_had_then(tiny_run, tmp_pat
     with pytest.raises(UsageError, match="keeps the checkpoints after iterations 3, not 1"):
         export_checkpoint(out, 1, tmp_path / "at-1")
     assert not (tmp_path / "at-1").exists()
+    with pytest.raises(UsageError, match="exists and is not an empty folder"):
+        export_checkpoint(out, 3, tmp_path / "at-3")  # never over another export or a run
 
 
 def test_init_from_a_shipped_policy_starts_at_its_actions():
