@@ -41,13 +41,14 @@ COMMAND_HZ, LAG_MS = 125.0, 5.0
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The 95 % Wilson score interval of k successes in n."""
+    """The 95 % Wilson score interval of k successes in n; it holds k / n, which rounding would
+    put a hair outside at 0 or n successes."""
     if n == 0:
         return math.nan, math.nan
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
+    return min(centre - half, p), max(centre + half, p)
 
 
 def cell_name(shape: str, size: int, linear: int) -> str:

@@ -314,3 +314,15 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     run_script("experiments/parts_suite.py", "--policy", "pitch=baseline", *changed, *tiny)
     record = json.loads((out / "pitch" / "suite.json").read_text())
     assert record["skill"]["spiral_pitch"] == 0.002
+
+
+def test_the_wilson_interval_holds_the_rate_at_every_count():
+    """At n of n successes the upper end is the rate itself (rounding put it 1e-16 under it, and
+    the parts suite's figure then had a negative error bar and failed)."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from ur5e_table import wilson
+
+    for k, n in ((300, 300), (0, 300), (100, 100), (1, 1), (7, 10)):
+        low, high = wilson(k, n)
+        assert 0.0 <= low <= k / n <= high <= 1.0
+    assert wilson(300, 300)[1] == 1.0 and wilson(0, 300)[0] == 0.0
