@@ -338,7 +338,9 @@ def main() -> None:
             f"Baseline parameters, the {args.skill} skill, {args.shapes} 50 mm, errors ±3 mm / "
             f"±4 deg, {args.time_limit:g} s limit{mjx}. Physics steps/s counts only steps of live "
             "trials; the ceiling replays the engine's own states with bare `mj_step` on as many "
-            "processes. Command: `python benchmarks/trials.py --write` (--trials "
+            "processes. Each engine run is timed right after bare `Batch.step` on the same "
+            "states; the ratio gives each pair's share and their median in bold. Command: "
+            "`python benchmarks/trials.py --write` (--trials "
             f"{args.trials}, --threads {args.threads}, --time-limit {args.time_limit:g}, "
             f"--repeat {args.repeat}, --mjx-trials {args.mjx_trials}).\n\n{table}\n\n"
             + "\n".join(f"- {note}" for note in notes if not note.startswith((" ", "profile")))
