@@ -81,6 +81,10 @@ class Checkpoints:
     def latest_step(self) -> int | None:
         return self._manager.latest_step()
 
+    def steps(self) -> list[int]:
+        """The finished steps kept, in order."""
+        return sorted(self._manager.all_steps())
+
     def save(self, step: int, tree) -> None:
         """Save `tree` as step `step` and wait until it is on disk. A save that fails on I/O (a
         full disk) leaves nothing of the step and raises OSError naming it (Orbax raises

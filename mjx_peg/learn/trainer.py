@@ -371,7 +371,7 @@ def export_checkpoint(run_dir, iteration: int, out) -> int:
         raise UsageError(f"{target.path} exists and is not an empty folder: export to a new one")
     config = run.read_config()
     with run.checkpoints() as saved:
-        kept = sorted(int(p.name) for p in saved.directory.iterdir() if p.name.isdigit())
+        kept = saved.steps()
         if iteration not in kept:
             raise UsageError(f"{run.path} keeps the checkpoints after iterations "
                              f"{', '.join(map(str, kept)) or 'none'}, not {iteration}")  # fmt: skip
