@@ -3,8 +3,8 @@ or turned hole, then pushes it through (an extension of the paper's skill).
 
 The paper's skill moves the goal by dy = C F (Eq. 6) and drives the tcp towards it (Eq. 10); a
 peg on the rim stays there, held by static friction until the lateral goal offset passes
-mu N (1 / K_e + C_xx). Six elements change that, each off by default (the defaults are the
-paper's skill): the first five while the peg rests on something, the sixth once it is deep in
+mu N (1 / K_e + C_xx). Seven elements change that, each off by default (the defaults are the
+paper's skill): the first six while the peg rests on something, the seventh once it is deep in
 the hole; a budget ends the spiral. In the goal frame (z points down, into the hole):
 
     gate        g = clip((N - f_on) / (f_full - f_on), 0, 1),  N = -F_z  (the board pushing up)
@@ -19,6 +19,9 @@ the hole; a budget ends the spiral. In the goal frame (z points down, into the h
                 axis (`spiral_path`), tau the time the peg has rested (`spiral_state`); while
                 it runs (sigma): dy_z <- (1 + sigma (kappa - 1)) dy_z, c_lat -> c_s, k_cop ->
                 k_cop (1 + sigma (k_s - 1))
+    tilt        dy_rot <- dy_rot + sigma theta_s (s_y, -s_x, 0) / max(|s|, 1 mm): the goal turned
+                about the axis normal to s, the face's edge away from the spiral's centre
+                lowest (off by default: docs/design/parts_family.md, "Tilted while spiralling")
     insertion   dy_z <- (1 + b (kappa_i - 1)) dy_z,  b = clip((d - d_i) / d_r, 0, 1), d the
                 tcp's depth below the hole's estimated entrance: a stiffer press once the peg
                 is deep in the hole (no gate)
@@ -99,6 +102,10 @@ class SkillConfig:
     # spiralling the axial offset is kappa c_r F_z, a compliance of its own that the learned and
     # explored C does not move
     spiral_axial_ref: float = 0.0
+    # rad: theta_s, the peg tilted while it spirals (times sigma), the edge of its face away from
+    # the spiral's centre lowest, so that an edge finds a hole too tight for the flat face to
+    # fall in; 0: upright
+    spiral_tilt: float = 0.0
     spiral_lateral: float = 0.0  # c_s: lateral compliance while spiralling, times C_xx, C_yy
     spiral_centre: float = 0.25  # the centring's gain while spiralling, times k_cop
     entry_depth: float = 0.0015  # m: e, the tcp's fall below its resting height that ends it
@@ -132,6 +139,10 @@ class SkillConfig:
             raise UsageError(  # up to the largest C_zz: the compliance loop's stable range
                 f"SkillConfig.spiral_axial_ref must be in [0, 2e-3] m/N, got "
                 f"{self.spiral_axial_ref!r}"
+            )
+        if not (math.isfinite(self.spiral_tilt) and 0 <= self.spiral_tilt <= 0.15):
+            raise UsageError(  # under 9 deg: the tilt the alignment's range takes back
+                f"SkillConfig.spiral_tilt must be in [0, 0.15] rad, got {self.spiral_tilt!r}"
             )
         if not (math.isfinite(self.movement_cruise) and 0 <= self.movement_cruise < 1):
             raise UsageError(
@@ -357,7 +368,7 @@ def centre_of_pressure(wrench, min_force: float):
 def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None, height=None,
                     values: SearchValues | None = None):  # fmt: skip
     """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment,
-    spiral and insertion elements applied, from the wrench (..., 6) the compliance sees, the
+    spiral, tilt and insertion elements applied, from the wrench (..., 6) the compliance sees, the
     goal's rotation (..., 3) the alignment found (`aligned_rotation`), the spiral's state (..., 3)
     (`spiral_state`) and the tcp's height (...,) over the goal along the goal's z (m; the
     insertion press's depth); None: none. values: the trial's learned constants (None: the
@@ -389,10 +400,15 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
             w = xp.clip((tau[..., None] - config.search_budget) / config.withdraw_s, 0.0, 1.0)
             axial = axial + w * (-(ENTRANCE_HEIGHT + config.withdraw_height) - axial)
             tau = xp.minimum(tau, config.search_budget)
-        lateral = lateral + spiral_path(config, tau, values)
+        path = spiral_path(config, tau, values)
+        lateral = lateral + path
     turn = dy[..., 3:]
     if config.align_rate > 0 and rotation is not None:
         turn = turn + rotation
+    if spiralling and config.spiral_tilt > 0:  # the edge away from the spiral's centre lowest
+        reach = xp.maximum(xp.linalg.vector_norm(path, axis=-1, keepdims=True), 1e-3)
+        lean = (config.spiral_tilt * sigma / reach) * path
+        turn = turn + xp.concat([lean[..., 1:], -lean[..., :1], xp.zeros_like(sigma)], axis=-1)
     return xp.concat([lateral, axial, turn], axis=-1)
 
 

@@ -226,6 +226,29 @@ def test_a_spiral_press_of_its_own_compliance_does_not_follow_c():
     np.testing.assert_allclose(former[:2], [-0.03, -0.025], atol=1e-15)
 
 
+def test_a_tilt_while_spiralling_lowers_the_faces_edge_away_from_the_spirals_centre():
+    """With theta_s the goal turns by sigma theta_s about the goal-frame axis normal to the
+    spiral's offset s: the point of the face at s / |s| from the tcp moves down the goal's z
+    (into the board), the one towards the centre up; position and press as without it."""
+    tilted = SkillConfig(spiral_speed=0.01, spiral_wait=0.0, spiral_tilt=0.1)
+    upright = tilted.replace(spiral_tilt=0.0)
+    wrench = _pressed_face(np.zeros((3, 2)), np.full(3, 30.0))
+    dy = RNG.normal(0.0, 1e-3, (3, 6))
+    spiral = np.array([[4.0, 0.08, 1.0], [7.0, 0.08, 0.5], [4.0, 0.08, 0.0]])
+    out = search.searched_offset(tilted, dy, wrench, None, spiral)
+    before = search.searched_offset(upright, dy, wrench, None, spiral)
+    np.testing.assert_array_equal(out[:, :3], before[:, :3])
+    np.testing.assert_array_equal(out[:, 5], dy[:, 5])
+    np.testing.assert_array_equal(out[2], before[2])  # sigma 0: upright
+    turn = out[:2, 3:] - dy[:2, 3:]
+    np.testing.assert_allclose(np.linalg.norm(turn, axis=-1), [0.1, 0.05], rtol=1e-12)
+    s = search.spiral_path(tilted, spiral[:2, 0])
+    assert np.all(np.linalg.norm(s, axis=-1) > 1e-3)
+    outward = 0.02 * s / np.linalg.norm(s, axis=-1, keepdims=True)  # a point of the face
+    drop = np.cross(turn, np.concatenate([outward, np.zeros((2, 1))], axis=-1))[:, 2]
+    np.testing.assert_allclose(drop, [0.1 * 0.02, 0.05 * 0.02], rtol=1e-12)  # down: goal z
+
+
 def test_a_search_past_its_budget_stops_and_withdraws_the_peg():
     """Past tau_b of resting the resting time runs with the clock, pressed or not; the spiral
     stays where it stopped and over T_w the goal's axial offset blends to h_w above the hole's
@@ -351,7 +374,7 @@ def test_numpy_and_jax_agree(x64):
 
     config = SkillConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
                           spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
-                          insert_depth=0.005, search_budget=10.0)  # fmt: skip
+                          insert_depth=0.005, search_budget=10.0, spiral_tilt=0.05)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
     wrench = wrench + RNG.normal(0.0, 0.5, wrench.shape)
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
@@ -400,6 +423,8 @@ def test_bad_config_and_unknown_skill_are_one_clear_error():
         SkillConfig(search_budget=0.0)
     with pytest.raises(UsageError, match="withdraw_s"):
         SkillConfig(withdraw_s=0.0)
+    with pytest.raises(UsageError, match="spiral_tilt"):
+        SkillConfig(spiral_tilt=0.2)
     with pytest.raises(UsageError, match="choose one of paper, spiral"):
         search.skill_config("wiggle")
 
