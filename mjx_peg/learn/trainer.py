@@ -376,7 +376,7 @@ def export_checkpoint(run_dir, iteration: int, out) -> int:
             raise UsageError(f"{run.path} keeps the checkpoints after iterations "
                              f"{', '.join(map(str, kept)) or 'none'}, not {iteration}")  # fmt: skip
         state = saved.restore(ppo.init_state(config, ppo.make_networks(config)), iteration)
-    target.path.mkdir(parents=True, exist_ok=True)
+    outdir.prepare_dir(target.path)
     outdir.write_atomic(target.config_path, config.dumps())
     _export(target, config, state, finished=False)
     return int(state.trials)
