@@ -10,6 +10,10 @@ policies/NAME gets policy.npz, manifest.json, config.json, metrics.csv and train
 it, the command, the machine, the training's wall time and trials (from metrics.csv). Every
 CLI then takes `--policy NAME` (mjx_peg/policy/shipped.py).
 
+manifest.json also records the range of the training parts' features (`observation.part_range`,
+from the training config, as the trainer writes it since it clips a part outside them): a policy
+shipped before that gets it here.
+
 `--skill` records in manifest.json the skill to run the policy with by default: the one its
 published numbers used (default: the one it was trained with), with its constants as they are
 now. Given a shipped policy's own folder, only its manifest.json and config.json are written
@@ -29,7 +33,7 @@ from pathlib import Path
 
 from mjx_peg.learn.config import TrainConfig
 from mjx_peg.outdir import write_atomic, write_json
-from mjx_peg.policy.export import MANIFEST_FILE, load_policy
+from mjx_peg.policy.export import MANIFEST_FILE, load_policy, part_range_json
 from mjx_peg.policy.shipped import SHIPPED_DIR
 from mjx_peg.skill.search import SKILLS, named_skill
 
@@ -38,15 +42,19 @@ FILES = ("policy.npz", "manifest.json", "config.json", "metrics.csv", "training_
 
 def record_skill(folder: Path, skill: str | None) -> str:
     """Write folder's manifest.json and config.json again: the skill to run it with (`skill`,
-    default the trained one, its constants as they are now) and the training config in full.
-    Returns the skill's name."""
+    default the trained one, its constants as they are now), the training parts' feature range
+    and the training config in full. Returns the skill's name."""
     path = folder / MANIFEST_FILE
+    layout = load_policy(folder).layout
     manifest = json.loads(path.read_text())
     trained = TrainConfig.from_json(manifest["config"])
     run = named_skill(skill) if skill else named_skill(trained.skill, trained.skill_constants)
     written = {}
     for key, value in manifest.items():  # the order save_policy writes: the skill, the config
-        if key == "config":
+        if key == "observation":
+            part_range = part_range_json(layout, trained.part_range(layout))
+            written[key] = {**value, "part_range": part_range}
+        elif key == "config":
             written.update(skill=run.record(), config=trained.to_json())
         elif key != "skill":
             written[key] = value

@@ -26,7 +26,7 @@ from mjx_peg import file_versions
 from mjx_peg.engines import ENGINES
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.errors import UsageError, validate_fields
-from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout
+from mjx_peg.policy.observation import DEFAULT_LAYOUT, check_layout, part_range
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import N_LEARNED, N_PARAMS
 from mjx_peg.skill.search import LEARNED, SkillConfig, constants_record, named_skill
@@ -304,6 +304,22 @@ class TrainConfig:
         """(38,) or (47,) physical vector at action 0 of the centred map, or None for the sigmoid
         map."""
         return self.prior_vector() if self.action_map == "centred" else None
+
+    def part_range(self, layout: str | None = None) -> np.ndarray:
+        """(2, k) the range of the observation's part features (`observation.part_range`, in
+        `layout`, default this config's) over the parts it trains on: each listed part, or every
+        shape at the smallest and largest size and hole clearance it draws."""
+        task = self.task()
+        parts = task.parts or [
+            (shape, size, scale)
+            for shape in task.shapes
+            for size in (min(task.sizes), max(task.sizes))
+            for scale in task.hole_scale_range(shape)
+        ]
+        shape_id = np.array([SHAPES.index(p[0]) for p in parts])
+        size = np.array([p[1] for p in parts], np.float64)
+        scale = np.array([p[2] for p in parts], np.float64)
+        return part_range(layout or self.observation, shape_id, size, scale)
 
     def replace(self, **changes) -> TrainConfig:
         """A copy with `changes`; another skill comes with its own constants unless given."""

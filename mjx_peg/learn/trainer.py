@@ -166,6 +166,7 @@ def _export(run: RunDir, config: TrainConfig, state: ppo.TrainingState, finished
         np.asarray(norm.std["state"]),
         config.to_json(),
         centre=config.map_centre(),
+        part_range=config.part_range(),
         extra={
             "finished": finished,
             "trials": int(state.trials),

@@ -5,7 +5,9 @@ manifest that says what they mean: schema version, observation layout (`observat
 manifests without one are `names`), its feature names and normalization, layer
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
-without a map used), the skill to run it with (its name and every constant: the skill its
+without a map used), the range of its training parts' features where recorded (a part outside it
+is read as the nearest trained one, `observation.clip_part`; manifests without one read every
+part as it is), the skill to run it with (its name and every constant: the skill its
 published numbers used; by default the one it was trained with) and the config that made it.
 `load_policy` checks all of it and raises `PolicyError` (one line) on anything missing,
 truncated or inconsistent. No JAX is imported here: the real robot runs this.
@@ -53,6 +55,9 @@ class Policy:
     manifest: dict
     centre: np.ndarray | None = None  # (38,) or (47,) the centred map's centre; None: sigmoid
     layout: str = "names"  # its observation layout (observation.LAYOUTS)
+    # (2, k) the training parts' range of the part features (observation.part_range), which
+    # `act` clips them to; None: the network reads every part as it is
+    part_range: np.ndarray | None = None
 
     @property
     def skill(self) -> NamedSkill:
@@ -75,7 +80,8 @@ class Policy:
         return tuple(float(s) for s in self.manifest.get("config", {}).get("size_mm", ()))
 
     def act(self, obs) -> np.ndarray:
-        """(B, 38) unbounded action (the network's mean) for (B, n) observations."""
+        """(B, 38) or (B, 47) unbounded action (the network's mean) for (B, n) observations,
+        their part features clipped to `part_range` first where it is recorded."""
         obs = np.asarray(obs)
         width = len(observation.LAYOUTS[self.layout])
         if obs.shape[-1:] != (width,):
@@ -83,6 +89,8 @@ class Policy:
                 f"the policy reads {width} observation numbers (its {self.layout} layout), "
                 f"got an array of shape {obs.shape}"
             )
+        if self.part_range is not None:
+            obs = observation.clip_part(obs, self.part_range[0], self.part_range[1])
         return network.mean_action(self.layers, self.obs_mean, self.obs_std, obs)
 
     def observe(self, shape_id, size, hole_scale, hole_est_pos, hole_est_yaw) -> np.ndarray:
@@ -143,6 +151,39 @@ def _map_centre(manifest: dict, where) -> np.ndarray | None:
         raise PolicyError(f"{where}: {e}") from None
 
 
+def part_range_json(layout: str, part_range) -> dict:
+    """The manifest's `observation.part_range` of a (2, k) range in `layout`."""
+    low, high = np.asarray(part_range, np.float64)
+    return {
+        "features": list(observation.LAYOUTS[layout][observation.POSE_FEATURES :]),
+        "low": [float(v) for v in low],
+        "high": [float(v) for v in high],
+        "use": "the training parts' range: part features are clipped to it before the network "
+        "(mjx_peg/policy/observation.py clip_part)",
+    }
+
+
+def _part_range(record, layout: str, where) -> np.ndarray | None:
+    """The (2, k) part range a manifest records for `layout`, None where it records none;
+    PolicyError where it is malformed."""
+    if record is None:
+        return None
+    k = len(observation.LAYOUTS[layout]) - observation.POSE_FEATURES
+    try:
+        low = np.asarray(record["low"], np.float64)
+        high = np.asarray(record["high"], np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise PolicyError(
+            f"{where}: observation.part_range is not {{low: [...], high: [...]}}"
+        ) from None
+    if low.shape != (k,) or high.shape != (k,):
+        raise PolicyError(f"{where}: observation.part_range needs {k} numbers in low and high "
+                          f"(the {layout} layout's part features)")  # fmt: skip
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low <= high)):
+        raise PolicyError(f"{where}: observation.part_range holds a non-finite or empty interval")
+    return np.stack([low, high])
+
+
 def _run_skill(manifest: dict) -> NamedSkill:
     record = file_versions.manifest_skill(manifest)
     return named_skill(record["name"], record["constants"])
@@ -164,11 +205,13 @@ def save_policy(
     centre=None,
     skill: NamedSkill | None = None,
     layout: str | None = None,
+    part_range=None,
 ) -> Path:
     """Write `policy.npz` + `manifest.json` into run_dir, each atomically; the network outputs
     38 numbers (the controller) or 47 (and the contact search's constants). `skill`: the skill to
     run it with (default: the one `config` trained with); `layout`: its observation layout
-    (default: the one `config` names, `TrainConfig.observation`)."""
+    (default: the one `config` names, `TrainConfig.observation`); `part_range`: the (2, k)
+    range of its training parts' features (`TrainConfig.part_range`), or None to record none."""
     size = int(np.shape(layers[-1][0])[1])
     if size not in (params.N_PARAMS, params.N_LEARNED):
         raise ValueError(f"a policy outputs {params.N_PARAMS} or {params.N_LEARNED} numbers")
@@ -195,6 +238,7 @@ def save_policy(
             "names": list(observation.LAYOUTS[layout]),
             "normalization": "(obs - obs_mean) / obs_std, arrays in policy.npz",
             "definition": "mjx_peg/policy/observation.py",
+            **({} if part_range is None else {"part_range": part_range_json(layout, part_range)}),
         },
         "network": {
             "layers": [list(np.shape(k)) for k, _ in layers],
@@ -328,6 +372,7 @@ def load_policy(path) -> Policy:
         )
     if activation != ACTIVATION:
         raise PolicyError(f"{manifest_path}: unsupported activation")
+    part_range = _part_range(manifest["observation"].get("part_range"), layout, manifest_path)
     width = len(expected)
     for i, shape in enumerate(shapes):
         if shape[0] != width:
@@ -358,4 +403,4 @@ def load_policy(path) -> Policy:
     obs_mean, obs_std = arrays["obs_mean"], arrays["obs_std"]
     if np.any(obs_std <= 0):
         raise PolicyError(f"{npz_path}: obs_std holds values <= 0")
-    return Policy(layers, obs_mean, obs_std, manifest, centre, layout)
+    return Policy(layers, obs_mean, obs_std, manifest, centre, layout, part_range)

@@ -28,6 +28,12 @@ manifest records the one it was trained with:
                                         paper's 50 mm circle 0.75, square 2; tight fits 0.05-0.8
     8     depth / 0.08 m                the hole's depth (constants.HOLE_DEPTH: 1 for every part)
 
+Features 0-3 (`POSE_FEATURES`) are the estimated hole's pose; the rest describe the part. A
+policy's manifest may record the range of its training parts' features (`part_range`); the policy
+then reads a part outside it as the nearest trained one (`clip_part`), since a network's answer for
+a part feature it never saw vary is an extrapolation: the shipped `paper`, trained on 50 mm parts
+alone, asks k_theta 629 N m/rad for the 50 mm circle and 286 for an 80 mm one.
+
 Encoding the yaw at the shape's symmetry makes poses that are physically the same (a square
 turned by 90 deg) the same input, and keeps the input continuous where the board yaw wraps.
 
@@ -83,6 +89,9 @@ GEOMETRY_NAMES: tuple[str, ...] = (
 # (every policy exported before the geometry layout) are "names" (file_versions).
 LAYOUTS: dict[str, tuple[str, ...]] = {"names": OBS_NAMES, "geometry": GEOMETRY_NAMES}
 DEFAULT_LAYOUT = "geometry"  # new training runs'
+
+
+POSE_FEATURES = 4  # features 0-3 of both layouts: the estimated hole's pose, never clipped
 
 
 def check_layout(layout: str) -> str:
@@ -158,6 +167,33 @@ def observe_part(layout: str, shape_id, size, hole_scale, hole_est_pos, hole_est
     if check_layout(layout) == "names":
         return observe(shape_id, size, hole_est_pos, hole_est_yaw)
     return observe_geometry(shape_id, size, hole_scale, hole_est_pos, hole_est_yaw)
+
+
+def part_features(layout: str, shape_id, size, hole_scale):
+    """(..., len(LAYOUTS[layout]) - POSE_FEATURES) the features of (...,) parts (shape ids, sizes
+    S in m, hole scales) in `layout`, the hole's pose left out."""
+    xp = namespace_of(size, hole_scale)
+    size = xp.asarray(size)
+    zeros = xp.zeros(size.shape, dtype=size.dtype)
+    pos = xp.stack([zeros, zeros], axis=-1)
+    return observe_part(layout, shape_id, size, hole_scale, pos, zeros)[..., POSE_FEATURES:]
+
+
+def part_range(layout: str, shape_id, size, hole_scale):
+    """(2, k) the lowest and highest value of each part feature over (B,) parts: the range a
+    policy trained on them has seen (each feature is monotonic in S and in the hole scale, so the
+    corners of a part family's sizes and clearances span it)."""
+    xp = namespace_of(size, hole_scale)
+    features = part_features(layout, shape_id, size, hole_scale)
+    return xp.stack([xp.min(features, axis=0), xp.max(features, axis=0)])
+
+
+def clip_part(obs, low, high):
+    """`obs` (..., n) with its part features (POSE_FEATURES onwards) clipped to [low, high] (each
+    (n - POSE_FEATURES,)); the hole's pose passes unchanged."""
+    xp = namespace_of(obs)
+    part = xp.clip(obs[..., POSE_FEATURES:], low, high)
+    return xp.concat([obs[..., :POSE_FEATURES], part], axis=-1)
 
 
 def observe_specs(specs, layout: str = "names"):

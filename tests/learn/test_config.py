@@ -2,11 +2,14 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from mjx_peg.errors import UsageError
 from mjx_peg.learn.config import PRESETS, TrainConfig
+from mjx_peg.policy import observation
 from mjx_peg.world import family
+from mjx_peg.world.task import sample_trials
 
 
 def test_the_default_config_is_the_default_preset():
@@ -77,3 +80,23 @@ def test_bad_configs_are_refused_naming_the_field():
         TrainConfig(observation="pixels")
     with pytest.raises(UsageError, match="unknown skill 'search-old'"):
         TrainConfig(skill="search-old")
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        PRESETS["family"],
+        TrainConfig(shapes=("hexagon", "rectangle", "triangle"), size_mm=(20.0, 35.0, 70.0)),
+        TrainConfig(shapes=("circle",), size_mm=(50.0,), observation="names"),
+    ],
+    ids=["family", "three-sizes", "names"],
+)
+def test_the_part_range_spans_exactly_the_parts_a_config_trains_on(config):
+    """Every part the task draws lies in the recorded range and each bound is reached."""
+    specs = sample_trials(config.task(), 5, 2000)
+    seen = observation.part_features(config.observation, specs.shape_id, specs.size,
+                                     specs.hole_scale)  # fmt: skip
+    low, high = config.part_range()
+    assert np.all(seen >= low - 1e-12) and np.all(seen <= high + 1e-12)
+    np.testing.assert_allclose(seen.min(axis=0), low, atol=1e-9)
+    np.testing.assert_allclose(seen.max(axis=0), high, atol=1e-9)

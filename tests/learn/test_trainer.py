@@ -47,7 +47,9 @@ def test_run_dir_holds_the_promised_files(tiny_run, tiny_config):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["finished"] and manifest["action"]["param_names"][:2] == ["k_t", "k_theta"]
     assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
-    assert manifest["skill"] == spiral.record()  # it runs the skill it trained with
+    recorded = manifest["observation"]["part_range"]  # the parts it trained on
+    np.testing.assert_array_equal([recorded["low"], recorded["high"]], tiny_config.part_range())
+    assert load_policy(out).part_range is not None
     with np.load(out / "policy.npz", allow_pickle=False) as npz:
         assert all(npz[k].dtype == np.float32 for k in npz.files)
 

@@ -1,14 +1,17 @@
 """policy/export.py: a saved policy loads as it was saved and acts as its network computes; the
-manifest says how actions become numbers, which skill runs it and which observation layout it
-reads (older manifests the names layout); a damaged policy is one line naming its run."""
+manifest says how actions become numbers, which skill runs it, which observation layout it
+reads (older manifests the names layout) and which parts it trained on (a part beyond them reads
+as the nearest trained one); a damaged policy is one line naming its run."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
+from mjx_peg.learn.config import TrainConfig
 from mjx_peg.policy import network, observation
 from mjx_peg.policy.export import (
     MANIFEST_FILE,
@@ -237,6 +240,57 @@ def test_a_manifest_whose_observation_does_not_fit_is_one_policy_error(tmp_path,
     path = tmp_path / "manifest.json"
     manifest = json.loads(path.read_text())
     change(manifest)
+    path.write_text(json.dumps(manifest))
+    with pytest.raises(PolicyError, match=message) as error:
+        load_policy(tmp_path)
+    assert len(str(error.value).splitlines()) == 1
+
+
+def _ranged(tmp_path, layout="geometry"):
+    """A policy of `layout` trained (so its manifest says) on the 50 mm circle and square."""
+    config = TrainConfig(shapes=("circle", "square"), size_mm=(50.0,), observation=layout)
+    width = len(observation.LAYOUTS[layout])
+    save_policy(tmp_path, _layers(width), np.zeros(width), np.ones(width), config.to_json(),
+                part_range=config.part_range())  # fmt: skip
+    return load_policy(tmp_path)
+
+
+@pytest.mark.parametrize("layout", sorted(observation.LAYOUTS))
+def test_a_part_outside_the_training_parts_reads_as_the_nearest_trained_one(tmp_path, layout):
+    """A 10 mm circle gets the 50 mm circle's numbers at the same estimated hole, a trained part
+    its network's; the hole's pose is never clipped; the bare network tells the two apart."""
+    policy = _ranged(tmp_path, layout)
+    pos, yaw = np.array([[0.45, -0.1], [0.3, 0.2]]), np.array([0.2, -0.4])
+    shape, fit = np.full(2, SHAPES.index("circle")), np.full(2, 1.03)
+
+    def numbers(size, of=policy):
+        return of.vectors_for(policy.observe(shape, np.full(2, size), fit, pos, yaw))
+
+    np.testing.assert_array_equal(numbers(0.01), numbers(0.05))
+    bare = dataclasses.replace(policy, part_range=None)
+    square = policy.observe(np.full(2, SHAPES.index("square")), np.full(2, 0.05),
+                            np.full(2, 1.08), pos, yaw)  # fmt: skip
+    np.testing.assert_array_equal(policy.act(square), bare.act(square))  # trained: its network
+    assert np.abs(numbers(0.01, bare) - numbers(0.05, bare)).max() > 1e-3
+    obs = policy.observe(shape, np.full(2, 0.05), fit, pos, yaw)
+    moved = policy.observe(shape, np.full(2, 0.05), fit, pos + 0.05, yaw)
+    assert np.abs(policy.act(moved) - policy.act(obs)).max() > 1e-3  # the pose reaches it
+
+
+@pytest.mark.parametrize(
+    "record, message",
+    [
+        ([0.0, 1.0], "is not {low"),
+        ({"low": [0.0] * 4, "high": [1.0] * 5}, "needs 5 numbers"),
+        ({"low": [0.0] * 5, "high": [1.0, 1.0, -1.0, 1.0, 1.0]}, "empty interval"),
+        ({"low": [0.0] * 5, "high": [1.0, "nan", 1.0, 1.0, 1.0]}, "non-finite"),
+    ],
+)
+def test_a_malformed_part_range_is_one_policy_error(tmp_path, record, message):
+    _ranged(tmp_path)
+    path = tmp_path / "manifest.json"
+    manifest = json.loads(path.read_text())
+    manifest["observation"]["part_range"] = record
     path.write_text(json.dumps(manifest))
     with pytest.raises(PolicyError, match=message) as error:
         load_policy(tmp_path)
