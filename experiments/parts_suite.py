@@ -1,8 +1,8 @@
 """The parts suite: a family of parts beyond the paper's, each with its errors scaled to its size.
 
     python experiments/parts_suite.py --policy baseline --policy paper [--policy NAME=RUN_DIR]
-        [--trials 300] [--seed 0] [--part-scale absolute|size] [--skill-constant NAME=VALUE]
-        [--only PART,...] [--out docs/results/parts]
+        [--trials 300] [--first N] [--seed 0] [--part-scale absolute|size]
+        [--skill-constant NAME=VALUE] [--only PART,...] [--out docs/results/parts]
 
 The suite (`world/family.py` SUITE) spans the five shapes, sizes 10-80 mm and both clearance
 classes (the paper's fits and tight ones, `world/parts.py`); its held-out parts are in no
@@ -19,7 +19,8 @@ One CSV per policy and part under OUT/POLICY/ (a row per trial: outcome, time, p
 chatter, failure class), so a killed run resumes part by part; then OUT/parts.csv and
 OUT/parts.md (per policy and part: success with its 95 % Wilson interval, the time to insert p50
 / p90, protective stops, failures with chatter >= 5 N, the failure taxonomy of
-`evaluation/taxonomy.py`) and OUT/parts.png.
+`evaluation/taxonomy.py`) and OUT/parts.png. `--first N` runs only the first N of each part's
+`--trials` trials, the same trials as the whole suite's: a screen whose trials pair with it.
 """
 
 from __future__ import annotations
@@ -90,12 +91,13 @@ def read_rows(path: Path) -> list[dict]:
 
 def run_part(policy: str, part: Part, args, out: Path, progress=None) -> list[dict]:
     """The part's rows, running its trials unless its CSV already holds them all."""
-    trials = args.trials
+    trials = args.first or args.trials
     if out.is_file():
         rows = read_rows(out)
         if len(rows) == trials:
             return rows
-    specs = sample_trials(part_task(part), part_seed(args.seed, part), trials)
+    specs = sample_trials(part_task(part), part_seed(args.seed, part), args.trials)
+    specs = specs.take(np.arange(trials))  # --first: the suite's first trials, as drawn there
     controller = controller_of(policy)
     search = policy_skill(policy, args.part_scale, args.skill_constant)
     config = TrialConfig(time_limit_s=args.time_limit, search=search)
@@ -127,7 +129,8 @@ def check_folder(folder: Path, given: str, policy: str, args) -> None:
     record = dict(policy=given, skill=constants_record(policy_skill(policy, args.part_scale,
                                                        args.skill_constant)),
                   trials=args.trials, seed=args.seed, linear_mm_at_50=LINEAR_MM_AT_50,
-                  angular_deg=ANGULAR_DEG, time_limit_s=args.time_limit)  # fmt: skip
+                  angular_deg=ANGULAR_DEG, time_limit_s=args.time_limit,
+                  **({"first": args.first} if args.first else {}))  # fmt: skip
     path = folder / "suite.json"
     if path.is_file():
         saved = json.loads(path.read_text())
@@ -161,9 +164,9 @@ def summary(policy: str, part: Part, rows: list[dict]) -> dict:
     )  # fmt: skip
 
 
-def markdown(table: list[dict], trials: int, seed: int, time_limit: float) -> str:
+def markdown(table: list[dict], trials: str, seed: int, time_limit: float) -> str:
     lines = [
-        f"The parts suite (`python experiments/parts_suite.py`): {trials} trials per part, seed "
+        f"The parts suite (`python experiments/parts_suite.py`): {trials} per part, seed "
         f"{seed}, +-{LINEAR_MM_AT_50:g} mm x S / 50 mm, +-{ANGULAR_DEG:g} deg, {time_limit:g} s. "
         f"Held out of all training: {', '.join(p.name for p in SUITE if p.held_out)}.",
         "",
@@ -231,6 +234,13 @@ def main(argv=None) -> int:
     p.add_argument("--policy", action="append", default=[], metavar="[LABEL=]POLICY",
                    help="baseline, a shipped policy's name or a run directory; repeat")  # fmt: skip
     p.add_argument("--trials", type=int, default=300, help="trials per part (default 300)")
+    p.add_argument(
+        "--first",
+        type=int,
+        default=0,
+        metavar="N",
+        help="only the first N of each part's trials (a screen; default: all)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--time-limit", type=float, default=60.0, help="per trial (default 60 s)")
     p.add_argument(
@@ -249,6 +259,8 @@ def main(argv=None) -> int:
         args.policy = ["baseline", "paper"]
     if args.trials < 1:
         raise SystemExit(f"--trials must be a positive integer, got {args.trials}")
+    if not 0 <= args.first <= args.trials:
+        raise SystemExit(f"--first must lie in 1..--trials ({args.trials}), got {args.first}")
     names = {part.name: part for part in SUITE}
     chosen = [names[n] for n in args.only.split(",") if n] if args.only else list(SUITE)
     unknown = [n for n in args.only.split(",") if n and n not in names]
@@ -262,13 +274,14 @@ def main(argv=None) -> int:
         todo = [(label, policy, part) for label, _, policy in policies for part in chosen]
         for label, given, policy in policies:
             check_folder(args.out / label, given, policy, args)
-        bar = tqdm(total=len(todo) * args.trials, desc="parts suite", unit="trial",
+        per_part = args.first or args.trials
+        bar = tqdm(total=len(todo) * per_part, desc="parts suite", unit="trial",
                    smoothing=0.0, dynamic_ncols=True)  # fmt: skip
         with bar:
             for label, policy, part in todo:
                 rows = run_part(policy, part, args, args.out / label / f"{part.name}.csv",
                                 bar.update)  # fmt: skip
-                bar.n = max(bar.n, len(table) * args.trials + len(rows))
+                bar.n = max(bar.n, len(table) * per_part + len(rows))
                 table.append(summary(label, part, rows))
                 r = table[-1]
                 bar.write(f"{label} {part.name}: {r['success_pct']:.1f} % ({r['successes']} / "
@@ -280,7 +293,12 @@ def main(argv=None) -> int:
             writer = csv.DictWriter(f, fieldnames=list(table[0]))
             writer.writeheader()
             writer.writerows(table)
-        text = markdown(table, args.trials, args.seed, args.time_limit)
+        trials = (
+            f"the first {args.first} of {args.trials} trials"
+            if args.first
+            else (f"{args.trials} trials")
+        )
+        text = markdown(table, trials, args.seed, args.time_limit)
         (args.out / "parts.md").write_text(text)
         plot(table, args.out / "parts.png")
     print(text, end="")

@@ -10,7 +10,7 @@ arm, vision to action, and the nominal 350-range grid last.
 `policies/paper` is not retrained (`python train.py --preset paper`, ~22 min here, is a decision
 of its own); its manifest records again that it runs the spiral skill, with the spiral's
 constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
-its commands.
+its commands, and the range of its training parts' features (`ship_policy.record_skill`).
 
     python experiments/regenerate.py                       # everything, ~195 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run

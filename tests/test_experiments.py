@@ -314,6 +314,14 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     run_script("experiments/parts_suite.py", "--policy", "pitch=baseline", *changed, *tiny)
     record = json.loads((out / "pitch" / "suite.json").read_text())
     assert record["skill"]["spiral_pitch"] == 0.002
+    # a screen of the first trials runs the suite's own first trials
+    text = run_script("experiments/parts_suite.py", "--policy", "first=baseline", "--first", 1,
+                      *tiny)  # fmt: skip
+    assert "the first 1 of 2 trials per part" in text
+    for part in ("circle-10", "hexagon-20"):
+        screen = list(csv.DictReader(open(out / "first" / f"{part}.csv")))
+        whole = list(csv.DictReader(open(out / "baseline" / f"{part}.csv")))
+        assert screen == whole[:1]
 
 
 def test_the_wilson_interval_holds_the_rate_at_every_count():

@@ -190,8 +190,9 @@ def part_range(layout: str, shape_id, size, hole_scale):
 
 def clip_part(obs, low, high):
     """`obs` (..., n) with its part features (POSE_FEATURES onwards) clipped to [low, high] (each
-    (n - POSE_FEATURES,)); the hole's pose passes unchanged."""
+    (n - POSE_FEATURES,)), in `obs`'s dtype; the hole's pose passes unchanged."""
     xp = namespace_of(obs)
+    low, high = (xp.asarray(bound, dtype=obs.dtype) for bound in (low, high))
     part = xp.clip(obs[..., POSE_FEATURES:], low, high)
     return xp.concat([obs[..., :POSE_FEATURES], part], axis=-1)
 

@@ -92,36 +92,43 @@ def test_an_unknown_name_is_one_line_and_exit_2(tmp_path):
     assert "no shipped policy of that name" in run.stderr
 
 
-def _names_observation(specs):
+def _names_observation(specs, trained: tuple[str, ...]):
     """The observation the shipped policies were trained on, written out here (not imported):
-    hole x, y, the yaw at the shape's symmetry, a one-hot of circle, square, triangle, the size."""
+    hole x, y, the yaw at the shape's symmetry, a one-hot of circle, square, triangle, the size;
+    held to their training parts (`trained` shapes, all at 50 mm): a shape they never saw reads
+    0, a policy of one shape sees it always, and every size is 50 mm."""
     order = np.array([0.0, 4.0, 3.0])[specs.shape_id]
+    one_hot = np.eye(3)[specs.shape_id]
+    for k, shape in enumerate(("circle", "square", "triangle")):
+        one_hot[:, k] = (1.0 if len(trained) == 1 else one_hot[:, k]) if shape in trained else 0.0
     return np.concatenate(
         [
             (specs.hole_est_pos - np.array([0.4, 0.0])) / 0.3,
             np.stack([np.cos(order * specs.hole_est_yaw), np.sin(order * specs.hole_est_yaw)], -1),
-            np.eye(3)[specs.shape_id],
-            ((specs.size - 0.05) / 0.01)[:, None],
+            one_hot,
+            np.zeros((len(specs), 1)),
         ],
         axis=-1,
     )
 
 
 @pytest.mark.parametrize("name", ["paper", "quick", "transfer"])
-def test_the_shipped_policies_act_exactly_as_they_did(name):
+def test_the_shipped_policies_act_as_their_network_on_their_training_parts(name):
     """Each reads the names layout (its manifest predates the layouts) and gives, bit for bit,
-    the numbers its network gives for the observation it was trained on; on the robot too."""
+    the numbers its network gives for the observation it was trained on, a part beyond its
+    training parts read as the nearest of them; on the robot too."""
     from mjx_peg.policy import network
     from mjx_peg.robot.runtime import HoleEstimate, controller_vector
     from mjx_peg.world.task import TaskConfig, sample_trials
 
     policy = load_policy(name)
     assert policy.layout == "names" and "layout" not in policy.manifest["observation"]
+    assert policy.sizes_mm == (50.0,)
     config = TaskConfig(shapes=("circle", "square", "triangle"), sizes=(0.025, 0.05, 0.06))
     specs = sample_trials(config, 11, 24)
 
     def expected(specs):
-        obs = _names_observation(specs)
+        obs = _names_observation(specs, policy.shapes)
         action = network.mean_action(policy.layers, policy.obs_mean, policy.obs_std, obs)
         return np.asarray(network.controller_vector(action, policy.centre), np.float64)
 
