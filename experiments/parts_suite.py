@@ -293,11 +293,9 @@ def main(argv=None) -> int:
             writer = csv.DictWriter(f, fieldnames=list(table[0]))
             writer.writeheader()
             writer.writerows(table)
-        trials = (
-            f"the first {args.first} of {args.trials} trials"
-            if args.first
-            else (f"{args.trials} trials")
-        )
+        trials = f"{args.trials} trials"
+        if args.first:
+            trials = f"the first {args.first} of {trials}"
         text = markdown(table, trials, args.seed, args.time_limit)
         (args.out / "parts.md").write_text(text)
         plot(table, args.out / "parts.png")
