@@ -6,8 +6,8 @@ manifests without one are `names`), its feature names and normalization, layer
 shapes, activation, the 38 parameter names, their physical ranges and the map from the network's
 action to them (`skill/params.py`: "centred" on a recorded vector, or "sigmoid", which manifests
 without a map used), the range of its training parts' features where recorded (a part outside it
-is read as the nearest trained one, `observation.clip_part`; manifests without one read every
-part as it is), the skill to run it with (its name and every constant: the skill its
+is read with each feature held to that range, `observation.clip_part`; manifests without one
+read every part as it is), the skill to run it with (its name and every constant: the skill its
 published numbers used; by default the one it was trained with) and the config that made it.
 `load_policy` checks all of it and raises `PolicyError` (one line) on anything missing,
 truncated or inconsistent. No JAX is imported here: the real robot runs this.

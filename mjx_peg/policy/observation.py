@@ -30,9 +30,10 @@ manifest records the one it was trained with:
 
 Features 0-3 (`POSE_FEATURES`) are the estimated hole's pose; the rest describe the part. A
 policy's manifest may record the range of its training parts' features (`part_range`); the policy
-then reads a part outside it as the nearest trained one (`clip_part`), since a network's answer for
-a part feature it never saw vary is an extrapolation: the shipped `paper`, trained on 50 mm parts
-alone, asks k_theta 629 N m/rad for the 50 mm circle and 286 for an 80 mm one.
+then holds each part feature of a part outside it to that range (`clip_part`: a 10 mm circle reads
+as the 50 mm circle for a policy trained on 50 mm parts), since a network's answer for a part
+feature it never saw vary is an extrapolation: the shipped `paper`, trained on 50 mm parts alone,
+asks k_theta 629 N m/rad for the 50 mm circle and 286 for an 80 mm one.
 
 Encoding the yaw at the shape's symmetry makes poses that are physically the same (a square
 turned by 90 deg) the same input, and keeps the input continuous where the board yaw wraps.

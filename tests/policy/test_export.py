@@ -1,7 +1,7 @@
 """policy/export.py: a saved policy loads as it was saved and acts as its network computes; the
 manifest says how actions become numbers, which skill runs it, which observation layout it
 reads (older manifests the names layout) and which parts it trained on (a part beyond them reads
-as the nearest trained one); a damaged policy is one line naming its run."""
+with its features held to their range); a damaged policy is one line naming its run."""
 
 from __future__ import annotations
 
@@ -256,7 +256,7 @@ def _ranged(tmp_path, layout="geometry"):
 
 
 @pytest.mark.parametrize("layout", sorted(observation.LAYOUTS))
-def test_a_part_outside_the_training_parts_reads_as_the_nearest_trained_one(tmp_path, layout):
+def test_a_part_beyond_the_training_parts_reads_as_the_trained_part_of_its_shape(tmp_path, layout):
     """A 10 mm circle gets the 50 mm circle's numbers at the same estimated hole, a trained part
     its network's; the hole's pose is never clipped; the bare network tells the two apart."""
     policy = _ranged(tmp_path, layout)

@@ -116,7 +116,7 @@ def _names_observation(specs, trained: tuple[str, ...]):
 def test_the_shipped_policies_act_as_their_network_on_their_training_parts(name):
     """Each reads the names layout (its manifest predates the layouts) and gives, bit for bit,
     the numbers its network gives for the observation it was trained on, a part beyond its
-    training parts read as the nearest of them; on the robot too."""
+    training parts held to the range they span; on the robot too."""
     from mjx_peg.policy import network
     from mjx_peg.robot.runtime import HoleEstimate, controller_vector
     from mjx_peg.world.task import TaskConfig, sample_trials
