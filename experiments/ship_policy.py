@@ -11,8 +11,8 @@ it, the command, the machine, the training's wall time and trials (from metrics.
 CLI then takes `--policy NAME` (mjx_peg/policy/shipped.py).
 
 manifest.json also records the range of the training parts' features (`observation.part_range`,
-from the training config, as the trainer writes it since it clips a part outside them): a policy
-shipped before that gets it here.
+from the training config, as the trainer writes it; the policy holds a part's features to it): a
+policy shipped before the trainer wrote it gets it here.
 
 `--skill` records in manifest.json the skill to run the policy with by default: the one its
 published numbers used (default: the one it was trained with), with its constants as they are
