@@ -12,7 +12,7 @@ of its own); its manifest records again that it runs the spiral skill, with the 
 constants as they are, so that `--policy paper` runs it without `--skill`, as the README writes
 its commands, and the range of its training parts' features (`ship_policy.record_skill`).
 
-    python experiments/regenerate.py                       # everything, ~195 min on 2 cores
+    python experiments/regenerate.py                       # everything, ~200 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 30 min nominal grid
@@ -106,11 +106,17 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
         return Step(name, argv, expect_s)
 
     base = ("--skill", "spiral")
+    # the baseline under the spiral's constants that `paper` records (its yaw free, its peg
+    # upright), `paper`'s start, until it is recorded again
+    untilted = (*base, "--search", "align_max_yaw=0;spiral_tilt=0")
     large = ("--linear-mm", "8", "--angular-deg", "12")
     more = ("--trials", "1500", "--seed", "2")
     sets = [
         contact("paper46", 21, *paper),
         contact("base46", 79, *base),
+        contact("base46_untilted", 79, *untilted),
+        contact("base812_untilted", 108, *untilted, *large),
+        contact("base812s2_untilted", 194, *untilted, *large, *more),
         contact("quick46", 44, "--policy", "quick"),
         contact("base46_paper_skill", 170, "--skill", "paper"),
         contact("paper812", 95, *paper, *large),

@@ -38,8 +38,9 @@ QUARTERS = ("Q1", "Q2", "Q3", "Q4")
 # Contact sets compared on the same trials: (section, set, reference).
 PAIRS = (
     ("What learning adds: a policy against its start, the baseline with the same skill",
-     (("paper46", "base46"), ("quick46", "base46"), ("paper812", "base812"),
-      ("quick812", "base812"), ("paper812s2", "base812s2"), ("quick812s2", "base812s2"),
+     (("paper46", "base46_untilted"), ("quick46", "base46"), ("paper812", "base812_untilted"),
+      ("quick812", "base812"), ("paper812s2", "base812s2_untilted"),
+      ("quick812s2", "base812s2"),
       ("paper46s2", "base46s2"), ("tri_paper", "tri_base"), ("tri_transfer", "tri_base"),
       ("tri_transfer", "tri_paper"))),
     ("The shipped skill against the paper's, the baseline's numbers",
@@ -339,10 +340,11 @@ def training_section() -> list[str]:
 LEARNING = "docs/design/data/learning"
 
 
-def train_command(config: dict, name: str) -> str:
-    """The train.py command that makes the runs of `config` (a seed's config.json) today: its
-    preset and start, and the update's KL and the skill's constants where they differ from what
-    those give now (an earlier run of a start whose settings have since changed)."""
+def train_options(config: dict, name: str) -> tuple[list[str], list[str]]:
+    """(the start's options, the changes' options) of the train.py command that makes the runs
+    of `config` (a seed's config.json) today: its preset and start; the update's KL and the
+    skill's constants where they differ from what those give now (an earlier run of a start
+    whose settings have since changed: `--skill-constant NAME=VALUE` each)."""
     from mjx_peg.learn import cli
     from mjx_peg.learn.config import TrainConfig
 
@@ -365,9 +367,30 @@ def train_command(config: dict, name: str) -> str:
     if made(extra) != want:
         raise ValueError(f"{name}: no train.py command of its preset, start, KL and skill "
                          "constants makes its config.json")  # fmt: skip
+    return start, extra
+
+
+def train_command(config: dict, name: str) -> str:
+    """The train.py command that makes the runs of `config` today (`train_options`)."""
+    start, extra = train_options(config, name)
     head = start[:-2]  # --eval-every after --seeds, as the guides write it
     return shlex.join(["python", "train.py", *head, "--seeds", "0,1,2", *start[-2:], *extra,
                        "--out", f"runs/{name}"])  # fmt: skip
+
+
+def start_set(config: dict) -> Path:
+    """The hand-tuned start's 1,500 trials under the skill the run of `config` trained with: a
+    set kept from before constants of the skill changed, named by their values then
+    (`LEARNING/contact/start-NAME=VALUE[-NAME=VALUE...].csv`), where the run's constants hold
+    each; else the shipped set (`docs/results/contact/base812s2.csv`, today's skill)."""
+    from mjx_peg.learn.config import TrainConfig
+
+    constants = TrainConfig.from_json(config).skill_constants
+    for path in sorted((ROOT / LEARNING / "contact").glob("start-*.csv")):
+        pairs = [item.partition("=") for item in path.stem.removeprefix("start-").split("-")]
+        if all(getattr(constants, name) == float(value) for name, _, value in pairs):
+            return path
+    return ROOT / RESULTS / "contact" / "base812s2.csv"
 
 
 def learning_section() -> list[str]:
@@ -384,13 +407,15 @@ def learning_section() -> list[str]:
         "`docs/design/learning_from_scratch.md`): the held-out success of the policy's mean (128 "
         "fixed trials, 20 s) at the end, its first and last held-out points, and where measured "
         "its mean on the 1,500 trials at ±8 mm / ±12 deg (seed 2, 60 s) against the hand-tuned "
-        "start on the same trials (`docs/results/contact/base812s2.csv`; McNemar).",
+        "start on the same trials under the run's own skill (McNemar; "
+        "`docs/results/contact/base812s2.csv`, or for a run of the skill before a constant "
+        f"changed the start's set then, `{LEARNING}/contact/start-NAME=VALUE.csv`).",
         "",
     ]
-    start = load(ROOT / RESULTS / "contact" / "base812s2.csv")
     rows, cmds = [], {}
     for folder in sorted(root.glob("*/seed-*")):
         config = json.loads((folder / "config.json").read_text())
+        start = load(start_set(config))
         with open(folder / "eval.csv") as f:
             held = list(csv.DictReader(f))
         first, last = held[0], held[-1]
@@ -420,6 +445,8 @@ def describe(argv: list[str]) -> tuple[str, str]:
     who = "the baseline" if policy == "baseline" else f"`{policy}`"
     skill = flag(argv, "--skill")
     who += f", `{skill}`" if skill else ""
+    if (search := flag(argv, "--search")) is not None:
+        who += f" with `{search}`"
     if (sensor := flag(argv, "--sensor")) is not None:
         who += f", sensor `{sensor}`"
     if (friction := flag(argv, "--friction")) is not None:

@@ -136,6 +136,7 @@ def test_read_npz_never_reads_a_member_not_asked_for(tmp_path):
 
 
 def _policy(tmp_path):
+    """A copy of the shipped `quick` (9 observation numbers, the geometry layout; 47 outputs)."""
     run = tmp_path / "policy"
     shutil.copytree(shipped.SHIPPED_DIR / "quick", run)
     return run
@@ -167,7 +168,7 @@ POLICY_DAMAGE = {
     "one-number layer": (lambda r: _edit_manifest(r, lambda d: d["network"].update(layers=[[8]])),
                          "network.layers holds [8]"),
     "layers do not chain": (lambda r: _edit_manifest(r, lambda d: d["network"].update(
-        layers=[[8, 64], [32, 38]])), "layer 1 takes 32 inputs"),
+        layers=[[9, 64], [32, 47]])), "layer 1 takes 32 inputs"),
     "trials is text": (lambda r: _edit_manifest(r, lambda d: d.update(trials="many")),
                        "trials is not a count"),
     "manifest is a FIFO": (lambda r: ((r / "manifest.json").unlink(),
@@ -182,7 +183,7 @@ POLICY_DAMAGE = {
                               "array 'obs_mean' has shape (1099511627776,)"),
     "NaN in a bias": (lambda r: _edit_npz(r, layer1_bias=_npy(np.full(64, np.nan, np.float32))),
                       "array 'layer1_bias' holds NaN"),
-    "zero std": (lambda r: _edit_npz(r, obs_std=_npy(np.zeros(8, np.float32))),
+    "zero std": (lambda r: _edit_npz(r, obs_std=_npy(np.zeros(9, np.float32))),
                  "obs_std holds values <= 0"),
     "truncated npz": (lambda r: _truncate(r / "policy.npz", 900),
                       "policy.npz: is corrupt or truncated"),

@@ -63,19 +63,27 @@ def test_the_docs_links_lead_to_files():
 
 def test_a_learning_run_is_listed_with_the_command_that_makes_it_today():
     """A run whose start has changed since (the former generic start: the update held to a KL of
-    0.01, the spiral pressing with a multiple of C_zz) is listed with the flags that make it now,
+    0.01, the spiral pressing with a multiple of C_zz, its yaw unbounded and its peg upright) is
+    listed with the flags that make it now, compared with the start's trials under its own skill,
     and the command of each shipped run resolves to that run's config."""
     import json
 
     sys.path.insert(0, str(ROOT / "experiments"))
-    from results_page import train_command
+    from results_page import start_set, train_command
 
     from mjx_peg.learn import cli
     from mjx_peg.learn.config import TrainConfig
 
     former = json.loads((ROOT / "docs/design/data/learning/scratch/seed-0/config.json").read_text())
     command = train_command(former, "scratch")
-    assert "--kl-target 0.01 --skill-constant spiral_axial_ref=0 --out runs/scratch" in command
+    assert command.endswith(
+        "--kl-target 0.01 --skill-constant align_max_yaw=0 --skill-constant spiral_axial_ref=0 "
+        "--skill-constant spiral_tilt=0 --out runs/scratch"
+    )
+    start = start_set(former)
+    assert start.name == "start-align_max_yaw=0-spiral_tilt=0.csv" and start.is_file()
+    today = TrainConfig.from_json(former).replace(skill_constants=None).to_json()
+    assert start_set(today).name == "base812s2.csv"
     argv = command.split()[2:]
     seeds = argv.index("--seeds")
     args = cli.parser().parse_args(argv[:seeds] + argv[seeds + 2 :] + ["--seed", "0"])

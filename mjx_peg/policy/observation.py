@@ -8,7 +8,7 @@ documented constants, so a value never seen in training (a 60 mm peg, a triangle
 input rather than a division by a near-zero running std. Two layouts (`LAYOUTS`); a policy's
 manifest records the one it was trained with:
 
-`names` (the shipped policies'), 8 numbers:
+`names` (the shipped `paper`'s and `transfer`'s), 8 numbers:
 
     0-1   (hole_est_x - 0.4 m) / 0.3 m, hole_est_y / 0.3 m   (the default workspace sector spans
           x 0.18-0.65 m, y +-0.56 m: inputs within about +-2)

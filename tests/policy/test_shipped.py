@@ -55,19 +55,22 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 def test_the_shipped_policies_load_and_say_how_they_were_made():
     """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
     running by default the shipped skill (`spiral`, the skill their published numbers used;
-    `paper` was trained with an earlier one, `search`, which its config records), its
-    manifest's and config's constants those of the skill (a constant added to the skill since
-    they were written reads its default, off); its provenance names the commit and command that
-    trained it."""
+    `paper` was trained with an earlier one, `search`, which its config records, and runs the
+    spiral as it was before its yaw bound and its tilt), its manifest's and config's constants
+    those of the skill (a constant added to the skill since they were written reads its default,
+    off); its provenance names the commit and command that trained it."""
     names = shipped.shipped_names()
     assert names == ["paper", "quick", "transfer"]
+    before = {"align_max_yaw": 0.0, "spiral_tilt": 0.0}  # `paper`'s record, the spiral's defaults
     for name in names:
         policy = load_policy(name)
-        vectors = policy.vectors_for(np.zeros((2, 8)))
-        assert vectors.shape == (2, 38) and np.all(np.isfinite(vectors))
+        inputs, outputs = {"paper": (8, 38), "quick": (9, 47), "transfer": (8, 47)}[name]
+        vectors = policy.vectors_for(np.zeros((2, inputs)))
+        assert vectors.shape == (2, outputs) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
         manifest = json.loads((folder / "manifest.json").read_text())
-        spiral = NamedSkill("spiral", SKILLS["spiral"])
+        changes = before if name == "paper" else {}
+        spiral = NamedSkill("spiral", SKILLS["spiral"].replace(**changes))
         assert policy.skill == spiral
         recorded = named_skill(manifest["skill"]["name"], manifest["skill"]["constants"])
         assert recorded == spiral
@@ -112,9 +115,24 @@ def _names_observation(specs, trained: tuple[str, ...]):
     )
 
 
+def _geometry_observation(specs, low, high):
+    """The geometry layout written out here (not imported): hole x, y, the yaw at the shape's
+    symmetry, then 1 / n, the peg's in- and circumradius ((r - 25 mm) / 10 mm), the radial
+    clearance in mm and the hole's depth over 80 mm; the part's five held to [low, high]."""
+    pose = _names_observation(specs, ("circle",))[:, :4]
+    inverse = np.array([0.0, 1 / 4, 1 / 3])[specs.shape_id]
+    r_in = np.array([0.5, 0.5, 0.5 / np.sqrt(3)])[specs.shape_id] * specs.size
+    r_out = np.array([0.5, np.sqrt(0.5), 1 / np.sqrt(3)])[specs.shape_id] * specs.size
+    clearance = (specs.hole_scale - 1.0) * r_in / 0.001
+    part = np.stack([inverse, (r_in - 0.025) / 0.01, (r_out - 0.025) / 0.01, clearance,
+                     np.ones(len(specs))], -1)  # fmt: skip
+    return np.concatenate([pose, np.clip(part, low, high)], -1)
+
+
 @pytest.mark.parametrize("name", ["paper", "quick", "transfer"])
 def test_the_shipped_policies_act_as_their_network_on_their_training_parts(name):
-    """Each reads the names layout (its manifest predates the layouts) and gives, bit for bit,
+    """Each reads its layout (`paper`'s manifest predates the layouts: names; `transfer` names
+    it, as `paper` it started from; `quick`, trained since, the geometry) and gives, bit for bit,
     the numbers its network gives for the observation it was trained on, a part beyond its
     training parts held to the range they span; on the robot too."""
     from mjx_peg.policy import network
@@ -122,13 +140,19 @@ def test_the_shipped_policies_act_as_their_network_on_their_training_parts(name)
     from mjx_peg.world.task import TaskConfig, sample_trials
 
     policy = load_policy(name)
-    assert policy.layout == "names" and "layout" not in policy.manifest["observation"]
+    layout = {"paper": None, "quick": "geometry", "transfer": "names"}[name]
+    assert policy.layout == (layout or "names")
+    assert policy.manifest["observation"].get("layout") == layout
     assert policy.sizes_mm == (50.0,)
     config = TaskConfig(shapes=("circle", "square", "triangle"), sizes=(0.025, 0.05, 0.06))
     specs = sample_trials(config, 11, 24)
+    recorded = policy.manifest["observation"]["part_range"]
 
     def expected(specs):
-        obs = _names_observation(specs, policy.shapes)
+        if layout == "geometry":
+            obs = _geometry_observation(specs, recorded["low"], recorded["high"])
+        else:
+            obs = _names_observation(specs, policy.shapes)
         action = network.mean_action(policy.layers, policy.obs_mean, policy.obs_std, obs)
         return np.asarray(network.controller_vector(action, policy.centre), np.float64)
 

@@ -312,6 +312,8 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
         insert_axial=0.5,
         align_depth=0.015,
         search_budget=45.0,
+        align_max_yaw=0.1,
+        spiral_tilt=0.1,
     )
     assert search.skill_config("spiral") == spiral  # the other constants: SkillConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_config("paper")
