@@ -127,9 +127,11 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
         contact("paper812s2", 180, *paper, *large, *more),
         contact("paper46s2", 128, *paper, *more),
         contact("base46s2", 129, *base, *more),
+        contact("base46s2_untilted", 129, *untilted, *more),
         contact("tri_transfer", 115, "--policy", "transfer", "--shapes", "triangle"),
         contact("tri_paper", 123, *paper, "--shapes", "triangle"),
         contact("tri_base", 116, *base, "--shapes", "triangle"),
+        contact("tri_base_untilted", 116, *untilted, "--shapes", "triangle"),
         *(contact(f"sensor_{v}", 30, *paper, "--sensor", v)
           for v in ("nofilter", "cutoff0.5", "cutoff2", "delay+2", "noise2")),
         *(contact(f"friction_{f}", 85, *paper, "--friction", f) for f in ("0.2", "0.9")),
