@@ -106,17 +106,11 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
         return Step(name, argv, expect_s)
 
     base = ("--skill", "spiral")
-    # the baseline under the spiral's constants that `paper` records (its yaw free, its peg
-    # upright), `paper`'s start, until it is recorded again
-    untilted = (*base, "--search", "align_max_yaw=0;spiral_tilt=0")
     large = ("--linear-mm", "8", "--angular-deg", "12")
     more = ("--trials", "1500", "--seed", "2")
     sets = [
         contact("paper46", 21, *paper),
         contact("base46", 79, *base),
-        contact("base46_untilted", 79, *untilted),
-        contact("base812_untilted", 108, *untilted, *large),
-        contact("base812s2_untilted", 194, *untilted, *large, *more),
         contact("quick46", 44, "--policy", "quick"),
         contact("base46_paper_skill", 170, "--skill", "paper"),
         contact("paper812", 95, *paper, *large),
@@ -127,11 +121,9 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
         contact("paper812s2", 180, *paper, *large, *more),
         contact("paper46s2", 128, *paper, *more),
         contact("base46s2", 129, *base, *more),
-        contact("base46s2_untilted", 129, *untilted, *more),
         contact("tri_transfer", 115, "--policy", "transfer", "--shapes", "triangle"),
         contact("tri_paper", 123, *paper, "--shapes", "triangle"),
         contact("tri_base", 116, *base, "--shapes", "triangle"),
-        contact("tri_base_untilted", 116, *untilted, "--shapes", "triangle"),
         *(contact(f"sensor_{v}", 30, *paper, "--sensor", v)
           for v in ("nofilter", "cutoff0.5", "cutoff2", "delay+2", "noise2")),
         *(contact(f"friction_{f}", 85, *paper, "--friction", f) for f in ("0.2", "0.9")),

@@ -38,10 +38,10 @@ QUARTERS = ("Q1", "Q2", "Q3", "Q4")
 # Contact sets compared on the same trials: (section, set, reference).
 PAIRS = (
     ("What learning adds: a policy against its start, the baseline with the same skill",
-     (("paper46", "base46_untilted"), ("quick46", "base46"), ("paper812", "base812_untilted"),
-      ("quick812", "base812"), ("paper812s2", "base812s2_untilted"),
+     (("paper46", "base46"), ("quick46", "base46"), ("paper812", "base812"),
+      ("quick812", "base812"), ("paper812s2", "base812s2"),
       ("quick812s2", "base812s2"),
-      ("paper46s2", "base46s2_untilted"), ("tri_paper", "tri_base_untilted"),
+      ("paper46s2", "base46s2"), ("tri_paper", "tri_base"),
       ("tri_transfer", "tri_base"),
       ("tri_transfer", "tri_paper"))),
     ("The shipped skill against the paper's, the baseline's numbers",

@@ -37,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS
     from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS
     from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
+    from mjx_peg.learn.cli import add_skill_constant_option
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
     from mjx_peg.world.parts import HOLE_SCALE_HELP
@@ -112,6 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     cli.add_skill_option(p, SKILL_DESCRIPTIONS)
+    add_skill_constant_option(p)
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(
@@ -187,6 +189,9 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
         if shape not in SHAPES:
             raise UsageError(f"unknown shape {shape!r}: choose from {', '.join(SHAPES)}")
     skill = choose_skill(args.skill, args.policy)
+    constants = skill.config
+    if args.skill_constant:
+        constants = constants.replace(**dict(args.skill_constant))
     hole_scale = parse_hole_scale(args.hole_scale)
     return EvalConfig(
         policy=policy_label,
@@ -200,7 +205,7 @@ def config_from_args(args: argparse.Namespace, policy_label: str):
         full_time_limit=args.full_time_limit,
         grasp_model=args.grasp_model,
         skill=skill.name,
-        skill_constants=skill.config,
+        skill_constants=constants,
         seed=args.seed,
         engine=resolve_engine(args.engine),
         hole_scale=None if hole_scale == "paper" else hole_scale,

@@ -22,7 +22,7 @@ from mjx_peg.evaluation.config import EvalConfig, range_specs
 from mjx_peg.evaluation.grid_table import GridTable
 from mjx_peg.evaluation.paper_tables import PAPER
 from mjx_peg.evaluation.summary import summary_markdown
-from mjx_peg.skill.search import skill_description
+from mjx_peg.skill.search import constants_set, skill_description
 from mjx_peg.world.constants import HOLE_FITS
 from mjx_peg.world.task import SHAPES, TrialSpec
 
@@ -67,8 +67,9 @@ def _header(out: Path, config: EvalConfig, grid: GridTable, policy_label: str) -
             else f"{settled} failures ended early, settled (TrialConfig.end_settled)"
         ),
         f"grasp errors: {GRASP_DESCRIPTION[config.grasp_model]}",
-        f"skill: {config.skill} ({skill_description(config.skill)}; its constants in "
-        f"{eval_dir.CONFIG_FILE})",
+        f"skill: {config.skill} ({skill_description(config.skill)}; "
+        + "".join(f"{c} set; " for c in constants_set(config.skill, config.skill_constants))
+        + f"its constants in {eval_dir.CONFIG_FILE})",
         f"seed {config.seed}; engine {config.engine}",
         f"all trials: {ok} / {total} succeeded ({100.0 * ok / max(total, 1):.2f} %); per shape: "
         + shapes,

@@ -156,15 +156,7 @@ def parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
-    p.add_argument(
-        "--skill-constant",
-        action="append",
-        type=skill_constant,
-        metavar="NAME=VALUE",
-        help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
-        "spiral_axial_ref=0.001), each in the range SkillConfig accepts for it; repeatable; "
-        "config.json records them",
-    )
+    add_skill_constant_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -173,6 +165,19 @@ def parser() -> argparse.ArgumentParser:
         "JAX_NUM_PROCESSES, JAX_PROCESS_ID or the cluster's own environment)",
     )
     return p
+
+
+def add_skill_constant_option(parser: argparse.ArgumentParser) -> None:
+    """--skill-constant NAME=VALUE (repeatable): train.py's and eval.py's."""
+    parser.add_argument(
+        "--skill-constant",
+        action="append",
+        type=skill_constant,
+        metavar="NAME=VALUE",
+        help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
+        "spiral_axial_ref=0.001), each in the range SkillConfig accepts for it; repeatable; "
+        "config.json records them",
+    )
 
 
 def skill_constant(text: str) -> tuple[str, float | str]:

@@ -304,6 +304,19 @@ def skill_config(name: str) -> SkillConfig:
     return SKILLS[name]
 
 
+def constants_set(name: str, config: SkillConfig) -> list[str]:
+    """`NAME=VALUE` for each constant of `config` that differs from the named skill's own
+    (`SKILLS`), as `--skill-constant` sets it; none for a skill of earlier versions."""
+    if name not in SKILLS:
+        return []
+    changed = []
+    for field in dataclasses.fields(config):
+        value = getattr(config, field.name)
+        if value != getattr(SKILLS[name], field.name):
+            changed.append(f"{field.name}={value if isinstance(value, str) else f'{value:g}'}")
+    return changed
+
+
 def skill_description(name: str) -> str:
     """What the skill `name` is, in one phrase (`SKILL_DESCRIPTIONS`)."""
     if name in SKILL_DESCRIPTIONS:

@@ -117,6 +117,33 @@ def test_a_rerun_whose_skill_constants_changed_is_refused(tmp_path, monkeypatch,
     assert {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == before
 
 
+def test_a_skill_constant_set_runs_as_the_skill_with_it(tmp_path, monkeypatch, tiny_eval):
+    """`--skill-constant NAME=VALUE` runs the trials the skill with that constant would run
+    (the same grid.csv; the movement's duration changed, so not the default skill's),
+    config.json records it, summary.md names it, and a rerun without it is refused rather than
+    resumed."""
+    import json
+
+    from mjx_peg.skill import search
+
+    argv = [*tiny_eval, "--linear-mm", "1", "--angular-deg", "1", "--skill", "spiral"]
+    flagged = tmp_path / "flagged"
+    assert eval_cli.main([*argv, "--skill-constant", "movement_s=0.8", "--out",
+                          str(flagged)]) == 0  # fmt: skip
+    recorded = json.loads((flagged / "config.json").read_text())["config"]["skill_constants"]
+    assert recorded["movement_s"] == 0.8
+    assert "movement_s=0.8 set; its constants in config.json" in (
+        flagged / "summary.md").read_text()  # fmt: skip
+    assert eval_cli.main([*argv, "--out", str(flagged)]) == 2  # another config there
+    assert eval_cli.main([*argv, "--out", str(tmp_path / "default")]) == 0
+    with monkeypatch.context() as m:
+        m.setitem(search.SKILLS, "spiral", search.SKILLS["spiral"].replace(movement_s=0.8))
+        assert eval_cli.main([*argv, "--out", str(tmp_path / "skill")]) == 0
+    flag, default, skill = ((tmp_path / d / "grid.csv").read_text()
+                            for d in ("flagged", "default", "skill"))  # fmt: skip
+    assert flag == skill != default and flag.count("\n") == 2
+
+
 @pytest.mark.parametrize(
     "change, message",
     [
@@ -127,6 +154,8 @@ def test_a_rerun_whose_skill_constants_changed_is_refused(tmp_path, monkeypatch,
         ({"--shape": "octagon"}, "unknown shape 'octagon'"),
         ({"--linear-mm": "80"}, "--linear-mm ranges must lie in [0, 50] mm, got 80"),
         ({"--compare": "NO_DIR"}, "nope does not exist"),
+        ({"--skill-constant": "pitch=1"}, "must be NAME=VALUE with NAME a constant of the skill"),
+        ({"--skill-constant": "spiral_tilt=1"}, "SkillConfig.spiral_tilt must be in [0, 0.15]"),
     ],
 )
 def test_bad_input_is_one_clear_line(tmp_path, capsys, change, message, tiny_eval):

@@ -55,13 +55,12 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 def test_the_shipped_policies_load_and_say_how_they_were_made():
     """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
     running by default the shipped skill (`spiral`, the skill their published numbers used;
-    `paper` was trained with an earlier one, `search`, which its config records, and runs the
-    spiral as it was before its yaw bound and its tilt), its manifest's and config's constants
-    those of the skill (a constant added to the skill since they were written reads its default,
-    off); its provenance names the commit and command that trained it."""
+    `paper` was trained with an earlier one, `search`, which its config records), its
+    manifest's and config's constants those of the skill (a constant added to the skill since
+    they were written reads its default, off); its provenance names the commit and command that
+    trained it."""
     names = shipped.shipped_names()
     assert names == ["paper", "quick", "transfer"]
-    before = {"align_max_yaw": 0.0, "spiral_tilt": 0.0}  # `paper`'s record, the spiral's defaults
     for name in names:
         policy = load_policy(name)
         inputs, outputs = {"paper": (8, 38), "quick": (9, 47), "transfer": (8, 47)}[name]
@@ -69,8 +68,7 @@ def test_the_shipped_policies_load_and_say_how_they_were_made():
         assert vectors.shape == (2, outputs) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
         manifest = json.loads((folder / "manifest.json").read_text())
-        changes = before if name == "paper" else {}
-        spiral = NamedSkill("spiral", SKILLS["spiral"].replace(**changes))
+        spiral = NamedSkill("spiral", SKILLS["spiral"])
         assert policy.skill == spiral
         recorded = named_skill(manifest["skill"]["name"], manifest["skill"]["constants"])
         assert recorded == spiral
