@@ -45,7 +45,7 @@ from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.learn.cli import skill_constant
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import PART_SCALES, constants_record, named_skill
+from mjx_peg.skill.search import PART_SCALES, constants_from_record, constants_record, named_skill
 from mjx_peg.world.family import SUITE, Part
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -134,6 +134,8 @@ def check_folder(folder: Path, given: str, policy: str, args) -> None:
     path = folder / "suite.json"
     if path.is_file():
         saved = json.loads(path.read_text())
+        if isinstance(saved.get("skill"), dict):  # constants added since: their defaults, off
+            saved["skill"] = constants_record(constants_from_record(saved["skill"]))
         if saved != json.loads(json.dumps(record)):
             differ = sorted(k for k in record if saved.get(k) != json.loads(json.dumps(record[k])))
             raise SystemExit(

@@ -298,6 +298,11 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     before = (out / "baseline" / "circle-10.csv").stat().st_mtime_ns
     assert run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny) == text
     assert (out / "baseline" / "circle-10.csv").stat().st_mtime_ns == before  # resumed, not rerun
+    # a folder recorded before a constant of the skill was added (its default: off) resumes
+    saved = json.loads((out / "baseline" / "suite.json").read_text())
+    del saved["skill"]["spiral_yaw"], saved["skill"]["spiral_yaw_period"]
+    (out / "baseline" / "suite.json").write_text(json.dumps(saved))
+    assert run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny) == text
     done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
                            "baseline=quick", *map(str, tiny)], capture_output=True, text=True,
                           cwd=ROOT)  # fmt: skip
@@ -322,6 +327,37 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
         screen = list(csv.DictReader(open(out / "first" / f"{part}.csv")))
         whole = list(csv.DictReader(open(out / "baseline" / f"{part}.csv")))
         assert screen == whole[:1]
+
+
+def _suite_csv(path: Path, success, stops, times) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["trial", "success", "time_s", "protective_stop", "chatter_n",
+                         "peak_force_n", "failure"])  # fmt: skip
+        for k, (ok, stop, t) in enumerate(zip(success, stops, times, strict=True)):
+            writer.writerow([k, ok, t, stop, 1.0, 50.0, "" if ok else "on the rim"])
+
+
+def test_parts_paired_counts_lost_and_gained_trials_per_part_and_over_all(tmp_path):
+    ref, run = tmp_path / "ref", tmp_path / "run"
+    _suite_csv(ref / "a.csv", [1, 1, 0, 0, 1], [0, 0, 1, 0, 0], [2.0, 4.0, 60, 60, 3.0])
+    _suite_csv(run / "a.csv", [1, 0, 1, 1, 1], [0, 0, 0, 0, 0], [3.0, 60, 5.0, 6.0, 5.0])
+    _suite_csv(ref / "b.csv", [0, 0, 1], [0, 0, 0], [60, 60, 1.0])
+    _suite_csv(run / "b.csv", [1, 0, 1], [0, 1, 0], [2.0, 60, 1.5])
+    _suite_csv(ref / "c.csv", [1], [0], [1.0])  # the run lacks it: not paired
+    text = run_script("experiments/parts_paired.py", run, ref)
+    rows = {line.split(" | ")[0].strip("| *"): line for line in text.splitlines()[2:]}
+    assert set(rows) == {"a", "b", "all 2"}
+    # a: 60 -> 80 %, 1 lost / 2 gained; stops 1 -> 0; both inserted trials 0 and 4: 2.5 -> 4 s
+    assert rows["a"] == "| a | 5 | 60.0 % | 80.0 % | 1 / 2, p = 1 | 1 → 0 | 2.50 → 4.00 s |"
+    assert "| 8 | 50.0 % | 75.0 % | 1 / 3, p = 0.62 | 1 → 1 |" in rows["all 2"]
+    # trials 1 and 2 of each part only
+    text = run_script("experiments/parts_paired.py", run, ref, "--trials", "1:3")
+    assert "| a | 2 | 50.0 % | 50.0 % | 1 / 1, p = 1 | 1 → 0 | - |" in text
+    done = subprocess.run([sys.executable, ROOT / "experiments/parts_paired.py", run, ref,
+                           "--trials", "3:1"], capture_output=True, text=True)  # fmt: skip
+    assert done.returncode != 0 and done.stderr.strip().startswith("--trials must be FIRST:END")
 
 
 def test_the_wilson_interval_holds_the_rate_at_every_count():

@@ -106,6 +106,10 @@ class SkillConfig:
     # the spiral's centre lowest, so that an edge finds a hole too tight for the flat face to
     # fall in; 0: upright
     spiral_tilt: float = 0.0
+    # rad: psi_s, the amplitude of a yaw sweep while the peg spirals (times sigma): the goal
+    # turned about its axis along a triangle wave of period T_psi; 0: none
+    spiral_yaw: float = 0.0
+    spiral_yaw_period: float = 2.0  # s: T_psi
     spiral_lateral: float = 0.0  # c_s: lateral compliance while spiralling, times C_xx, C_yy
     spiral_centre: float = 0.25  # the centring's gain while spiralling, times k_cop
     entry_depth: float = 0.0015  # m: e, the tcp's fall below its resting height that ends it
@@ -148,12 +152,17 @@ class SkillConfig:
             raise UsageError(
                 f"SkillConfig.movement_cruise must be in [0, 1), got {self.movement_cruise!r}"
             )
+        if not (math.isfinite(self.spiral_yaw) and 0 <= self.spiral_yaw <= 0.3):
+            raise UsageError(
+                f"SkillConfig.spiral_yaw must be in [0, 0.3] rad, got {self.spiral_yaw!r}"
+            )
         if not (math.isfinite(self.lateral_scale) and 0 <= self.lateral_scale <= 1):
             raise UsageError(
                 f"SkillConfig.lateral_scale must be in [0, 1], got {self.lateral_scale!r}"
             )
         for name in ("spiral_pitch", "spiral_radius", "spiral_ramp", "spiral_axial",
-                     "entry_follow", "insert_axial", "insert_ramp", "withdraw_s"):  # fmt: skip
+                     "entry_follow", "insert_axial", "insert_ramp", "withdraw_s",
+                     "spiral_yaw_period"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"SkillConfig.{name} must be a number > 0, got {value!r}")
@@ -426,6 +435,10 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
         reach = xp.maximum(xp.linalg.vector_norm(path, axis=-1, keepdims=True), 1e-3)
         lean = (config.spiral_tilt * sigma / reach) * path
         turn = turn + xp.concat([lean[..., 1:], -lean[..., :1], xp.zeros_like(sigma)], axis=-1)
+    if spiralling and config.spiral_yaw > 0:  # a triangle wave in [-psi_s, psi_s]
+        phase = xp.remainder(tau / config.spiral_yaw_period + 0.25, 1.0)
+        sweep = config.spiral_yaw * sigma * (1.0 - 4.0 * xp.abs(phase[..., None] - 0.5))
+        turn = turn + xp.concat([xp.zeros_like(lateral), sweep], axis=-1)
     return xp.concat([lateral, axial, turn], axis=-1)
 
 

@@ -249,6 +249,31 @@ def test_a_tilt_while_spiralling_lowers_the_faces_edge_away_from_the_spirals_cen
     np.testing.assert_allclose(drop, [0.1 * 0.02, 0.05 * 0.02], rtol=1e-12)  # down: goal z
 
 
+def test_a_yaw_sweep_while_spiralling_turns_the_goal_about_its_axis_alone():
+    """With psi_s the goal's yaw runs a triangle wave of amplitude sigma psi_s and period T_psi
+    in the resting time tau (0 at tau = 0, psi_s at T_psi / 4, 0 at T_psi / 2, -psi_s at
+    3 T_psi / 4), stopped with tau at the budget; nothing else moves, and without it nothing."""
+    swept = SkillConfig(spiral_speed=0.01, spiral_wait=0.0, spiral_yaw=0.1,
+                        spiral_yaw_period=2.0, search_budget=8.0)  # fmt: skip
+    still = swept.replace(spiral_yaw=0.0)
+    n = 7
+    wrench = _pressed_face(np.zeros((n, 2)), np.full(n, 30.0))
+    dy = RNG.normal(0.0, 1e-3, (n, 6))
+    tau = np.array([0.0, 0.5, 1.0, 1.5, 0.25, 0.5, 9.5])
+    sigma = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 0.5, 1.0])
+    spiral = np.stack([tau, np.full(n, 0.08), sigma], axis=-1)
+    out = search.searched_offset(swept, dy, wrench, None, spiral)
+    before = search.searched_offset(still, dy, wrench, None, spiral)
+    np.testing.assert_array_equal(out[:, :5], before[:, :5])
+    # tau 9.5 is past the budget (8 s): the sweep stays where tau stopped, at 0
+    np.testing.assert_allclose(out[:, 5] - before[:, 5],
+                               [0.0, 0.1, 0.0, -0.1, 0.05, 0.05, 0.0], atol=1e-15)  # fmt: skip
+    with pytest.raises(UsageError, match="spiral_yaw"):
+        SkillConfig(spiral_yaw=0.5)
+    with pytest.raises(UsageError, match="spiral_yaw_period"):
+        SkillConfig(spiral_yaw_period=0.0)
+
+
 def test_a_search_past_its_budget_stops_and_withdraws_the_peg():
     """Past tau_b of resting the resting time runs with the clock, pressed or not; the spiral
     stays where it stopped and over T_w the goal's axial offset blends to h_w above the hole's
@@ -376,7 +401,8 @@ def test_numpy_and_jax_agree(x64):
 
     config = SkillConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
                           spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
-                          insert_depth=0.005, search_budget=10.0, spiral_tilt=0.05)  # fmt: skip
+                          insert_depth=0.005, search_budget=10.0, spiral_tilt=0.05,
+                          spiral_yaw=0.08)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
     wrench = wrench + RNG.normal(0.0, 0.5, wrench.shape)
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
