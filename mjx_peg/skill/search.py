@@ -394,11 +394,11 @@ def centre_of_pressure(wrench, min_force: float):
 def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None, height=None,
                     values: SearchValues | None = None):  # fmt: skip
     """(..., 6) the compliance's goal offset dy (..., 6) with the lateral, centring, alignment,
-    spiral, tilt and insertion elements applied, from the wrench (..., 6) the compliance sees, the
-    goal's rotation (..., 3) the alignment found (`aligned_rotation`), the spiral's state (..., 3)
-    (`spiral_state`) and the tcp's height (...,) over the goal along the goal's z (m; the
-    insertion press's depth); None: none. values: the trial's learned constants (None: the
-    config's)."""
+    spiral, tilt, yaw sweep and insertion elements applied, from the wrench (..., 6) the
+    compliance sees, the goal's rotation (..., 3) the alignment found (`aligned_rotation`), the
+    spiral's state (..., 3) (`spiral_state`) and the tcp's height (...,) over the goal along the
+    goal's z (m; the insertion press's depth); None: none. values: the trial's learned constants
+    (None: the config's)."""
     xp = namespace_of(dy, wrench)
     g = resting_gate(config, wrench)[..., None]
     c_lat, k_cop, axial = config.lateral_scale, config.centre_gain, dy[..., 2:3]
