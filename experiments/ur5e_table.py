@@ -1,23 +1,26 @@
 """The paper's real-UR5e table (section 7) in simulation: its 17 cells through the robot runtime.
 
     python experiments/ur5e_table.py [--policy paper] [--policy-for triangle=transfer]
-        [--trials 100] [--out docs/results/ur5e_table]
+        [--trials 100] [--skill-constant NAME=VALUE] [--out docs/results/ur5e_table]
 
 Each cell (a peg, its size, a linear error range at 12 deg) runs `python -m mjx_peg.robot` on
 the simulated arm as the paper ran the real one: effort commands at 125 Hz over the 500 Hz
 physics, a 5 ms actuator lag, the policy's numbers for each trial's estimated hole, `--trials`
-trials (the paper: 10). A cell already run (its runs.csv holds every trial) is kept, so a killed
-run resumes. Then OUT/table.md and OUT/table.csv: per cell our successes, the rate with its 95 %
-Wilson interval, protective stops, the median time, and the paper's x / 10 beside it, with the
-one-sided p that our rate is below the paper's real-robot rate: Fisher's exact test on the two
-counts, which carries the paper's own 10 trials' uncertainty (a binomial test against x / 10 as
-if exact would call any miss below a 10 / 10 cell significant).
+trials (the paper: 10), `--skill-constant` (repeatable) set in each policy's skill. A cell
+already run (its runs.csv holds every trial, its skill.json the skill asked for) is kept, so a
+killed run resumes; a cell of another skill is refused. Then OUT/table.md and OUT/table.csv:
+per cell our successes, the rate with its 95 % Wilson interval, protective stops, the median
+time, and the paper's x / 10 beside it, with the one-sided p that our rate is below the paper's
+real-robot rate: Fisher's exact test on the two counts, which carries the paper's own 10 trials'
+uncertainty (a binomial test against x / 10 as if exact would call any miss below a 10 / 10 cell
+significant).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import subprocess
 import sys
@@ -25,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 from scipy.stats import fisher_exact
+
+from mjx_peg.cli import skill_constant
 
 ROOT = Path(__file__).resolve().parents[1]
 # (shape, size mm, linear mm, the paper's successes of 10): the paper's Table 7, angular 12 deg
@@ -60,17 +65,43 @@ def read_runs(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+def cell_skill(policy: str, changes: tuple) -> dict:
+    """The skill record a cell of `policy` runs (`NamedSkill.record`), with `changes` ((name,
+    value) pairs) to its constants."""
+    from mjx_peg.policy.export import choose_skill, load_policy
+    from mjx_peg.policy.shipped import resolve_policy
+
+    resolved = resolve_policy(policy)
+    loaded = resolved if resolved == "baseline" else load_policy(resolved)
+    return choose_skill(None, loaded, changes).record()
+
+
+def ran_skill(out: Path) -> dict | None:
+    """The skill record a cell's skill.json holds, constants added since read as their
+    defaults; None where it has none."""
+    from mjx_peg.skill.search import constants_from_record, constants_record
+
+    path = out / "skill.json"
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    return {**record, "constants": constants_record(constants_from_record(record["constants"]))}
+
+
 def run_cell(policy: str, shape: str, size: int, linear: int, trials: int, out: Path,
-             seed: int) -> list[dict]:  # fmt: skip
+             seed: int, changes: tuple = ()) -> list[dict]:  # fmt: skip
     """The cell's runs.csv rows, running the robot CLI unless they are all there."""
     runs = out / "runs.csv"
     if runs.is_file() and len(read_runs(runs)) == trials:
+        if ran_skill(out) not in (None, cell_skill(policy, changes)):
+            raise SystemExit(f"{out} holds a cell of another skill: give another --out")
         return read_runs(runs)
+    constants = [a for name, value in changes for a in ("--skill-constant", f"{name}={value}")]
     argv = [sys.executable, "-m", "mjx_peg.robot", "--policy", policy, "--shape", shape,
             "--size", str(size), "--linear-mm", str(linear), "--angular-deg", str(ANGULAR_DEG),
             "--trials", str(trials), "--command-hz", str(COMMAND_HZ), "--actuator-lag-ms",
             str(LAG_MS), "--time-limit", "60", "--seed", str(seed), "--out", str(out),
-            "--no-progress", "--force"]  # fmt: skip
+            "--no-progress", "--force", *constants]  # fmt: skip
     done = subprocess.run(argv, cwd=ROOT, text=True, capture_output=True)
     if done.returncode != 0:
         raise SystemExit(f"{shape} {size} mm {linear} mm: {done.stderr.strip()}")
@@ -86,7 +117,16 @@ def main(argv=None) -> int:
     p.add_argument("--trials", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=Path("docs/results/ur5e_table"))
+    p.add_argument(
+        "--skill-constant",
+        action="append",
+        default=[],
+        type=skill_constant,
+        metavar="NAME=VALUE",
+        help="a constant of every cell's skill set (repeatable)",
+    )
     args = p.parse_args(argv)
+    changes = tuple(args.skill_constant)
     policies = {}
     for item in args.policy_for:
         shape, _, policy = item.partition("=")
@@ -97,7 +137,8 @@ def main(argv=None) -> int:
     for k, (shape, size, linear, paper) in enumerate(CELLS):
         policy = policies.get(shape, args.policy)
         name = cell_name(shape, size, linear)
-        runs = run_cell(policy, shape, size, linear, args.trials, args.out / name, args.seed + k)
+        runs = run_cell(policy, shape, size, linear, args.trials, args.out / name, args.seed + k,
+                        changes)  # fmt: skip
         ok = np.array([int(r["success"]) for r in runs], bool)
         times = np.array([float(r["time_s"]) for r in runs])[ok]
         stops = sum(int(r["protective_stop"]) for r in runs)
@@ -118,7 +159,9 @@ def main(argv=None) -> int:
     lines = [
         f"The paper's UR5e table in simulation: the robot runtime on the simulated arm, "
         f"{COMMAND_HZ:g} Hz commands, {LAG_MS:g} ms actuator lag, {args.trials} trials per cell, "
-        f"+-{ANGULAR_DEG:g} deg (`python experiments/ur5e_table.py`).",
+        f"+-{ANGULAR_DEG:g} deg (`python experiments/ur5e_table.py`"
+        + "".join(f" --skill-constant {n}={v:g}" for n, v in changes)
+        + ").",
         "",
         "| peg | linear | policy | ours | 95 % interval | protective stops | median time | "
         "the paper (real UR5e) | p (ours below the paper, Fisher) |",

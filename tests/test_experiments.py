@@ -370,3 +370,23 @@ def test_the_wilson_interval_holds_the_rate_at_every_count():
         low, high = wilson(k, n)
         assert 0.0 <= low <= k / n <= high <= 1.0
     assert wilson(300, 300)[1] == 1.0 and wilson(0, 300)[0] == 0.0
+
+
+def test_the_ur5e_table_keeps_a_cell_of_its_skill_and_refuses_one_of_another(tmp_path):
+    """A finished cell is kept where its skill.json is the skill asked for (one recorded before
+    a constant was added reads it as its default), and refused under another skill's constants."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import ur5e_table
+
+    from mjx_peg.policy.export import choose_skill
+
+    cell = tmp_path / "circle_50mm_6mm"
+    cell.mkdir()
+    (cell / "runs.csv").write_text("trial,success,time_s,protective_stop\n0,1,2.5,0\n")
+    record = choose_skill(None, "baseline").record()
+    del record["constants"]["spiral_yaw"]  # a cell run before the sweep existed
+    (cell / "skill.json").write_text(json.dumps(record))
+    rows = ur5e_table.run_cell("baseline", "circle", 50, 6, 1, cell, 0)
+    assert rows == [{"trial": "0", "success": "1", "time_s": "2.5", "protective_stop": "0"}]
+    with pytest.raises(SystemExit, match="holds a cell of another skill"):
+        ur5e_table.run_cell("baseline", "circle", 50, 6, 1, cell, 0, (("spiral_yaw", 0.1),))

@@ -33,11 +33,11 @@ def check_engine_options(engine: str, options: dict) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjx_peg.cli import add_skill_constant_option
     from mjx_peg.engines import ENGINES
     from mjx_peg.evaluation.config import DEFAULT_SHAPES, GRIDS
     from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS
     from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
-    from mjx_peg.learn.cli import add_skill_constant_option
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
     from mjx_peg.world.parts import HOLE_SCALE_HELP

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import os
 from pathlib import Path
 
@@ -156,7 +155,7 @@ def parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
-    add_skill_constant_option(p)
+    cli.add_skill_constant_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",
@@ -165,41 +164,6 @@ def parser() -> argparse.ArgumentParser:
         "JAX_NUM_PROCESSES, JAX_PROCESS_ID or the cluster's own environment)",
     )
     return p
-
-
-def add_skill_constant_option(parser: argparse.ArgumentParser) -> None:
-    """--skill-constant NAME=VALUE (repeatable): train.py's and eval.py's."""
-    parser.add_argument(
-        "--skill-constant",
-        action="append",
-        type=skill_constant,
-        metavar="NAME=VALUE",
-        help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
-        "spiral_axial_ref=0.001), each in the range SkillConfig accepts for it; repeatable; "
-        "config.json records them",
-    )
-
-
-def skill_constant(text: str) -> tuple[str, float | str]:
-    """argparse type of --skill-constant: (name, value) of NAME=VALUE, a SkillConfig field and
-    a number (a name for the constants that are names)."""
-    from mjx_peg.skill.search import TEXT_CONSTANTS, SkillConfig
-
-    name, sep, value = str(text).partition("=")
-    name, value = name.strip(), value.strip()
-    fields = [f.name for f in dataclasses.fields(SkillConfig)]
-    if not sep or name not in fields:
-        raise argparse.ArgumentTypeError(
-            f"must be NAME=VALUE with NAME a constant of the skill ({', '.join(fields)}), got "
-            f"{cli.shown(text)}"
-        )
-    if name in TEXT_CONSTANTS:
-        return name, value
-    try:
-        return name, float(value)
-    except ValueError:
-        got = cli.shown(value)
-        raise argparse.ArgumentTypeError(f"{name} must be a number, got {got}") from None
 
 
 def resolve_config(args):

@@ -271,10 +271,14 @@ def policy_skill(policy) -> NamedSkill:
     return load_policy(policy).skill
 
 
-def choose_skill(name: str | None, policy) -> NamedSkill:
+def choose_skill(name: str | None, policy, changes=()) -> NamedSkill:
     """The skill a command runs: `name` (a --skill, `SKILLS`, its constants as they are today)
-    where given, else the policy's (`policy_skill`)."""
-    return policy_skill(policy) if name is None else named_skill(name)
+    where given, else the policy's (`policy_skill`), with `changes` ((name, value) pairs of
+    --skill-constant) to its constants (UsageError on a value the skill refuses)."""
+    skill = policy_skill(policy) if name is None else named_skill(name)
+    if not changes:
+        return skill
+    return NamedSkill(skill.name, skill.config.replace(**dict(changes)))
 
 
 MAX_LAYERS, MAX_WIDTH = 16, 4096  # a policy network no larger than this is read

@@ -59,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     cli.add_skill_option(p, SKILL_DESCRIPTIONS)
+    cli.add_skill_constant_option(p)
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
@@ -193,25 +194,25 @@ def main(argv=None) -> int:
         from mjx_peg.robot import ur5e_cli
 
         return ur5e_cli.run(args, PROG)
-    from mjx_peg.policy.export import load_policy
+    from mjx_peg.policy.export import choose_skill, load_policy
 
     task, steps = _setup(args)
     policy = args.policy if args.policy == "baseline" else load_policy(args.policy)
+    skill = choose_skill(args.skill, policy, args.skill_constant or ())
     # The output location, before any trial: never the policy, one writer at a time, no earlier
     # result replaced without --force (moved aside then), writable; then one row per trial as
     # it ends.
     outdir.check_apart(args.out, {"--policy": args.policy})
     with outdir.exclusive(args.out):
-        return _simulate(args, task, steps, policy)
+        return _simulate(args, task, steps, policy, skill)
 
 
-def _simulate(args, task, steps: int, policy) -> int:
+def _simulate(args, task, steps: int, policy, skill) -> int:
     """The trials of the simulated arm, into --out (held)."""
     import numpy as np
 
     from mjx_peg.engines.trial import TrialConfig
     from mjx_peg.outdir import write_json
-    from mjx_peg.policy.export import choose_skill
     from mjx_peg.robot import runtime, sim_arm
     from mjx_peg.world.parts import fit_text
     from mjx_peg.world.task import sample_trials
@@ -226,7 +227,6 @@ def _simulate(args, task, steps: int, policy) -> int:
     specs = sample_trials(task, args.seed, args.trials)
     holes = [runtime.HoleEstimate.of_trial(specs, i) for i in range(len(specs))]
     vectors = [runtime.controller_vector(policy, hole) for hole in holes]
-    skill = choose_skill(args.skill, policy)
     write_json(args.out / SKILL_FILE, skill.record())
     config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     rows, start = [], time.perf_counter()

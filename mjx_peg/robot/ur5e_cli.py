@@ -269,7 +269,7 @@ def run(args, prog: str) -> int:
         policy = load_policy(policy)
         check_trained_for(policy, args.shape, args.size, f"--policy {shown_path(given)}")
     vector = controller_vector(policy, hole)
-    skill = choose_skill(args.skill, policy)
+    skill = choose_skill(args.skill, policy, args.skill_constant or ())
     config = TrialConfig(time_limit_s=args.time_limit, search=skill.config)
     p = plan(hole, vector, config)
     if args.dry_run:

@@ -25,6 +25,23 @@ def test_cli_runs_and_reports(tmp_path, capsys):
     assert skill == NamedSkill("paper", SKILLS["paper"]).record()
 
 
+def test_a_skill_constant_set_is_the_skill_the_trials_run(tmp_path, capsys):
+    """--skill-constant sets that constant of the skill the trials run (skill.json records it);
+    a value the skill refuses is one line, exit 2, and nothing is written."""
+    constants = ["--skill-constant", "spiral_yaw=0.1", "--skill-constant", "spiral_yaw_period=1"]
+    argv = ["--trials", "1", "--time-limit", "0.2", "--no-progress", "--skill", "spiral",
+            *constants]  # fmt: skip
+    assert cli.main([*argv, "--out", str(tmp_path / "run")]) == 0
+    skill = json.loads((tmp_path / "run" / "skill.json").read_text())
+    wanted = SKILLS["spiral"].replace(spiral_yaw=0.1, spiral_yaw_period=1.0)
+    assert skill == NamedSkill("spiral", wanted).record()
+    capsys.readouterr()
+    code = cli.main(["--skill-constant", "spiral_yaw=1", "--out", str(tmp_path / "refused")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "SkillConfig.spiral_yaw must be in [0, 0.3] rad" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "refused").exists()
+
+
 @pytest.mark.parametrize(
     "hz, steps", [(500.0, 1), (250.0, 2), (500.0 / 3, 3), (125.0, 4), (100.0, 5), (1.0, 500)]
 )
