@@ -38,14 +38,19 @@ import numpy as np
 from ur5e_table import wilson  # experiments/ur5e_table.py
 
 from mjx_peg import outdir
-from mjx_peg.cli import skill_constant
 from mjx_peg.engines import run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.shipped import resolve_policy
-from mjx_peg.skill.search import PART_SCALES, constants_from_record, constants_record, named_skill
+from mjx_peg.skill.search import (
+    PART_SCALES,
+    constants_from_record,
+    constants_record,
+    named_skill,
+)
+from mjx_peg.skill.skill_cli import skill_constant
 from mjx_peg.world.family import SUITE, Part
 from mjx_peg.world.task import TaskConfig, sample_trials
 

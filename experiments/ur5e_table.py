@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import fisher_exact
 
-from mjx_peg.cli import skill_constant
+from mjx_peg.skill.skill_cli import skill_constant
 
 ROOT = Path(__file__).resolve().parents[1]
 # (shape, size mm, linear mm, the paper's successes of 10): the paper's Table 7, angular 12 deg

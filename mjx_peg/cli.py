@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import errno
 import functools
 import math
@@ -265,39 +264,18 @@ def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
     )
 
 
-def add_skill_constant_option(parser: argparse.ArgumentParser) -> None:
-    """--skill-constant NAME=VALUE (repeatable): train.py's, eval.py's, the arm's."""
+def add_skill_constant_option(parser: argparse.ArgumentParser, parse: Callable) -> None:
+    """--skill-constant NAME=VALUE (repeatable): train.py's, eval.py's, the arm's; parse: its
+    type, NAME=VALUE to (name, value) (`skill.search.skill_constant`)."""
     parser.add_argument(
         "--skill-constant",
         action="append",
-        type=skill_constant,
+        type=parse,
         metavar="NAME=VALUE",
         help="one of the skill's constants set (skill/search.py SkillConfig, SI units, e.g. "
         "spiral_axial_ref=0.001), each in the range SkillConfig accepts for it; repeatable; "
         "the run's record (config.json, skill.json) holds them",
     )
-
-
-def skill_constant(text: str) -> tuple[str, float | str]:
-    """argparse type of --skill-constant: (name, value) of NAME=VALUE, a SkillConfig field and
-    a number (a name for the constants that are names)."""
-    from mjx_peg.skill.search import TEXT_CONSTANTS, SkillConfig
-
-    name, sep, value = str(text).partition("=")
-    name, value = name.strip(), value.strip()
-    fields = [f.name for f in dataclasses.fields(SkillConfig)]
-    if not sep or name not in fields:
-        raise argparse.ArgumentTypeError(
-            f"must be NAME=VALUE with NAME a constant of the skill ({', '.join(fields)}), got "
-            f"{shown(text)}"
-        )
-    if name in TEXT_CONSTANTS:
-        return name, value
-    try:
-        return name, float(value)
-    except ValueError:
-        got = shown(value)
-        raise argparse.ArgumentTypeError(f"{name} must be a number, got {got}") from None
 
 
 def ray_address(text: str) -> str:

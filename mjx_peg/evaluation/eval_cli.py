@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     from mjx_peg.evaluation.paper_tables import PAPER_CONDITIONS
     from mjx_peg.evaluation.runner import DEFAULT_CHUNK_TRIALS
     from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+    from mjx_peg.skill.skill_cli import skill_constant
     from mjx_peg.world.constants import GRASP_MODELS, SHAPES
     from mjx_peg.world.parts import HOLE_SCALE_HELP
 
@@ -113,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     cli.add_skill_option(p, SKILL_DESCRIPTIONS)
-    add_skill_constant_option(p)
+    add_skill_constant_option(p, skill_constant)
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     p.add_argument("--engine", default="auto", choices=ENGINES)
     p.add_argument(

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from mjx_peg import cli, outdir, signals
 from mjx_peg.errors import UsageError
+from mjx_peg.skill.skill_cli import skill_constant
 
 PROG = "train.py"
 
@@ -155,7 +156,7 @@ def parser() -> argparse.ArgumentParser:
     )
     cli.add_grasp_model_option(p, GRASP_MODELS, None)  # None: the preset's
     cli.add_skill_option(p, SKILL_DESCRIPTIONS, None, "the preset's (spiral)")
-    cli.add_skill_constant_option(p)
+    cli.add_skill_constant_option(p, skill_constant)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--distributed",

@@ -28,6 +28,7 @@ from mjx_peg import cli, outdir
 from mjx_peg.errors import UsageError
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import SKILL_DESCRIPTIONS
+from mjx_peg.skill.skill_cli import skill_constant
 from mjx_peg.world import constants
 from mjx_peg.world.constants import GRASP_MODELS
 
@@ -59,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")
     cli.add_skill_option(p, SKILL_DESCRIPTIONS)
-    cli.add_skill_constant_option(p)
+    cli.add_skill_constant_option(p, skill_constant)
     p.add_argument(
         "--command-hz",
         type=cli.number(0, PHYSICS_HZ, "Hz", lo_open=True),
