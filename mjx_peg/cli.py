@@ -266,7 +266,7 @@ def add_skill_option(parser: argparse.ArgumentParser, skills: Mapping[str, str],
 
 def add_skill_constant_option(parser: argparse.ArgumentParser, parse: Callable) -> None:
     """--skill-constant NAME=VALUE (repeatable): train.py's, eval.py's, the arm's; parse: its
-    type, NAME=VALUE to (name, value) (`skill.search.skill_constant`)."""
+    type, NAME=VALUE to (name, value) (`skill.skill_cli.skill_constant`)."""
     parser.add_argument(
         "--skill-constant",
         action="append",
