@@ -274,6 +274,8 @@ SKILLS = {
         align_depth=0.015,
         spiral_speed=0.03,
         spiral_tilt=0.1,
+        spiral_yaw=0.1,
+        spiral_yaw_period=1.0,
         movement_s=1.3,
         movement_cruise=0.5,
         insert_axial=0.5,
@@ -288,9 +290,9 @@ SKILL_DESCRIPTIONS = {
     "goal moved away from the centre of pressure of a peg resting on the board top and turned "
     "with the moment it feels (its yaw bounded to 0.1 rad), a spiral about the estimated hole "
     "while the peg rests there (its press lighter, its tip stiffer, the peg tilted 0.1 rad, "
-    "its edge away from the spiral's centre lowest), a stiffer press deep in the hole, a 1.3 s "
-    "movement that cruises half of it, and a search that has not found the hole in 45 s "
-    "withdrawn",
+    "its edge away from the spiral's centre lowest, its yaw swept 0.1 rad each way once a "
+    "second), a stiffer press deep in the hole, a 1.3 s movement that cruises half of it, and a "
+    "search that has not found the hole in 45 s withdrawn",
 }
 
 
