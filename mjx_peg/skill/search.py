@@ -92,6 +92,10 @@ class SkillConfig:
     align_max: float = 0.35  # rad: a_max, the largest tilt and the largest yaw (20 deg)
     align_max_yaw: float = 0.0  # rad: the yaw's own bound, where it differs from a_max; 0: a_max
     align_depth: float = 0.02  # m: d_a, the tcp's depth below the estimated entrance
+    # s: T_l, outside the hole (above d_a) the alignment's yaw relaxes to the estimate's over
+    # T_l, so the moment of a face dragged over the board top does not hold it at its bound;
+    # inf: never
+    align_yaw_leak: float = math.inf
     spiral_speed: float = 0.0  # m/s: v, the spiral's speed round its turns; 0: no spiral
     spiral_pitch: float = 0.01  # m: p, the spiral's pitch, its radius's growth per turn
     spiral_radius: float = 0.025  # m: R, its largest radius (then it turns back in)
@@ -166,6 +170,11 @@ class SkillConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"SkillConfig.{name} must be a number > 0, got {value!r}")
+        if not self.align_yaw_leak > 0:
+            raise UsageError(
+                f"SkillConfig.align_yaw_leak must be > 0 s (inf: never), got "
+                f"{self.align_yaw_leak!r}"
+            )
         if not self.search_budget > 0:
             raise UsageError(
                 f"SkillConfig.search_budget must be > 0 (inf: never), got {self.search_budget!r}"
@@ -454,7 +463,8 @@ def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, g
                      dt: float, values: SearchValues | None = None):  # fmt: skip
     """(..., 3) the goal's rotation a about goal x, y, z (rad) after one period of dt seconds:
     a + dt k_a g (h m_x, h m_y, m_z), its tilt (x, y) bounded to a_max and its yaw to a_max (or
-    `align_max_yaw`, where set: docs/design/tilted_hole.md, "The yaw during the spiral"); from the
+    `align_max_yaw`, where set: docs/design/tilted_hole.md, "The yaw during the spiral"), the yaw
+    less dt a_z / T_l while the tcp is not yet d_a in (`align_yaw_leak`, where set); from the
     rotation (..., 3) before, the wrench (..., 6) the compliance sees (its moment, and its axial
     force through the gate g), and the tcp's position (..., 3) against the goal's pose (..., 3),
     (..., 3, 3) (world frame; h: the tcp below the hole's estimated entrance by d_a); k_a and d_a
@@ -472,7 +482,10 @@ def aligned_rotation(config: SkillConfig, rotation, wrench, tcp_pos, goal_pos, g
     norm = xp.linalg.vector_norm(tilt, axis=-1, keepdims=True)
     tilt = tilt * xp.minimum(1.0, config.align_max / xp.maximum(norm, 1e-12))
     yaw_max = config.align_max_yaw or config.align_max
-    yaw = xp.clip(rotation[..., 2:] + step[..., 2:], -yaw_max, yaw_max)
+    yaw = rotation[..., 2:] + step[..., 2:]
+    if math.isfinite(config.align_yaw_leak):
+        yaw = yaw - xp.where(inside, 0.0, (dt / config.align_yaw_leak) * rotation[..., 2:])
+    yaw = xp.clip(yaw, -yaw_max, yaw_max)
     return xp.concat([tilt, yaw], axis=-1)
 
 

@@ -120,6 +120,29 @@ def test_alignment_bounds_its_yaw_apart_from_its_tilt_where_told():
         SkillConfig(align_max_yaw=-0.1)
 
 
+def test_alignment_yaw_relaxes_to_the_estimate_outside_the_hole_where_told():
+    """With T_l set, a step above the alignment's depth moves the yaw by dt k_a g m_z - dt a_z /
+    T_l (with no moment it decays by dt / T_l a period); in the hole (below d_a) it integrates
+    as without; the tilt is never touched."""
+    config = SkillConfig(align_rate=2.0, align_max=0.3, align_depth=0.01, align_yaw_leak=0.5)
+    wrench = _pressed_face(np.array([[0.01, -0.02]] * 4), np.full(4, 40.0))
+    wrench[:, 5] = [0.0, 0.2, 0.0, 0.2]
+    height = 0.08 - np.array([0.0, 0.0, 0.011, 0.011])  # on the board top, then in the hole
+    start = np.array([[0.02, 0.01, 0.08]] * 4)
+    dt = 0.002
+    got = search.aligned_rotation(config, start, wrench, *_over_goal(height), dt)
+    plain = search.aligned_rotation(
+        config.replace(align_yaw_leak=math.inf), start, wrench, *_over_goal(height), dt
+    )
+    leak = dt / 0.5 * 0.08
+    np.testing.assert_allclose(got[:, 2], plain[:, 2] - np.array([leak, leak, 0.0, 0.0]),
+                               rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(got[0, 2], 0.08 * (1.0 - dt / 0.5), rtol=1e-12)
+    np.testing.assert_array_equal(got[:, :2], plain[:, :2])
+    with pytest.raises(UsageError, match="align_yaw_leak"):
+        SkillConfig(align_yaw_leak=0.0)
+
+
 def test_spiral_path_runs_out_and_back_between_its_turns_at_its_speed_within_its_radius():
     p, v, big_r = 0.006, 0.01, 0.012
     config = SkillConfig(spiral_speed=v, spiral_pitch=p, spiral_radius=big_r, spiral_wait=1.0)
@@ -402,7 +425,7 @@ def test_numpy_and_jax_agree(x64):
     config = SkillConfig(centre_gain=1.0, lateral_scale=0.5, press_accel=3.0, align_rate=1.0,
                           spiral_speed=0.01, spiral_wait=0.0, insert_axial=0.5,
                           insert_depth=0.005, search_budget=10.0, spiral_tilt=0.05,
-                          spiral_yaw=0.08)  # fmt: skip
+                          spiral_yaw=0.08, align_yaw_leak=0.7)  # fmt: skip
     wrench = _pressed_face(RNG.uniform(-0.02, 0.02, (8, 2)), RNG.uniform(0.0, 40.0, 8))
     wrench = wrench + RNG.normal(0.0, 0.5, wrench.shape)
     dy, ydd = RNG.normal(0.0, 1e-3, (8, 6)), RNG.normal(0.0, 5.0, (8, 6))
