@@ -281,13 +281,14 @@ SKILLS = {
         align_rate=1.0,
         align_max_yaw=0.1,
         align_depth=0.015,
+        align_yaw_leak=0.5,
         spiral_speed=0.03,
         spiral_tilt=0.1,
         spiral_yaw=0.1,
         spiral_yaw_period=1.0,
         movement_s=1.3,
         movement_cruise=0.5,
-        insert_axial=0.5,
+        insert_axial=0.75,
         search_budget=45.0,
     ),
 }
@@ -297,11 +298,12 @@ SKILL_DESCRIPTIONS = {
     "paper": "the paper's compliant DMP as written",
     "spiral": "ours, the shipped skill: the paper's with a contact search (skill/search.py): the "
     "goal moved away from the centre of pressure of a peg resting on the board top and turned "
-    "with the moment it feels (its yaw bounded to 0.1 rad), a spiral about the estimated hole "
-    "while the peg rests there (its press lighter, its tip stiffer, the peg tilted 0.1 rad, "
-    "its edge away from the spiral's centre lowest, its yaw swept 0.1 rad each way once a "
-    "second), a stiffer press deep in the hole, a 1.3 s movement that cruises half of it, and a "
-    "search that has not found the hole in 45 s withdrawn",
+    "with the moment it feels (its yaw bounded to 0.1 rad, and relaxing to the estimate over "
+    "0.5 s until the peg is in the hole), a spiral about the estimated hole while the peg rests "
+    "there (its press lighter, its tip stiffer, the peg tilted 0.1 rad, its edge away from the "
+    "spiral's centre lowest, its yaw swept 0.1 rad each way once a second), a stiffer press deep "
+    "in the hole, a 1.3 s movement that cruises half of it, and a search that has not found the "
+    "hole in 45 s withdrawn",
 }
 
 

@@ -357,11 +357,14 @@ def test_the_paper_skill_is_the_default_and_changes_no_torque():
         spiral_speed=0.03,
         movement_s=1.3,
         movement_cruise=0.5,
-        insert_axial=0.5,
+        insert_axial=0.75,
         align_depth=0.015,
+        align_yaw_leak=0.5,
         search_budget=45.0,
         align_max_yaw=0.1,
         spiral_tilt=0.1,
+        spiral_yaw=0.1,
+        spiral_yaw_period=1.0,
     )
     assert search.skill_config("spiral") == spiral  # the other constants: SkillConfig's defaults
     assert control_config(TrialConfig()).search == search.skill_config("paper")
