@@ -298,11 +298,21 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     before = (out / "baseline" / "circle-10.csv").stat().st_mtime_ns
     assert run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny) == text
     assert (out / "baseline" / "circle-10.csv").stat().st_mtime_ns == before  # resumed, not rerun
-    # a folder recorded before a constant of the skill was added (its default: off) resumes
-    saved = json.loads((out / "baseline" / "suite.json").read_text())
-    del saved["skill"]["spiral_yaw"], saved["skill"]["spiral_yaw_period"]
+    # a folder recorded before a constant of the skill was added resumes where the skill holds
+    # the constant at its default (off), and is another run's where the skill turns it on
+    record = (out / "baseline" / "suite.json").read_text()
+    saved = json.loads(record)
+    del saved["skill"]["spiral_axial_ref"], saved["skill"]["part_scale"]
     (out / "baseline" / "suite.json").write_text(json.dumps(saved))
     assert run_script("experiments/parts_suite.py", "--policy", "baseline", *tiny) == text
+    saved = json.loads(record)
+    del saved["skill"]["spiral_yaw"]  # the shipped spiral sweeps its yaw: 0.1 rad, not 0
+    (out / "baseline" / "suite.json").write_text(json.dumps(saved))
+    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
+                           "baseline", *map(str, tiny)], capture_output=True, text=True,
+                          cwd=ROOT)  # fmt: skip
+    assert done.returncode != 0 and "(its skill differs)" in done.stderr
+    (out / "baseline" / "suite.json").write_text(record)
     done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
                            "baseline=quick", *map(str, tiny)], capture_output=True, text=True,
                           cwd=ROOT)  # fmt: skip

@@ -170,15 +170,10 @@ class SkillConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise UsageError(f"SkillConfig.{name} must be a number > 0, got {value!r}")
-        if not self.align_yaw_leak > 0:
-            raise UsageError(
-                f"SkillConfig.align_yaw_leak must be > 0 s (inf: never), got "
-                f"{self.align_yaw_leak!r}"
-            )
-        if not self.search_budget > 0:
-            raise UsageError(
-                f"SkillConfig.search_budget must be > 0 (inf: never), got {self.search_budget!r}"
-            )
+        for name in ("align_yaw_leak", "search_budget"):  # times that may be inf: never
+            value = getattr(self, name)
+            if not value > 0:
+                raise UsageError(f"SkillConfig.{name} must be > 0 s (inf: never), got {value!r}")
         if not math.isfinite(self.withdraw_height):
             raise UsageError(
                 f"SkillConfig.withdraw_height must be a number, got {self.withdraw_height!r}"
