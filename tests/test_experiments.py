@@ -14,10 +14,15 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def run(path: str, *args) -> subprocess.CompletedProcess:
+    """`python ROOT/path args`, its output captured, whatever its exit status."""
+    return subprocess.run([sys.executable, ROOT / path, *map(str, args)], capture_output=True,
+                          text=True, cwd=ROOT)  # fmt: skip
+
+
 def run_script(path: str, *args) -> str:
     """stdout of `python ROOT/path args` (it must exit 0)."""
-    done = subprocess.run([sys.executable, ROOT / path, *map(str, args)], capture_output=True,
-                          text=True, cwd=ROOT)  # fmt: skip
+    done = run(path, *args)
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout
 
@@ -236,12 +241,10 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     assert (tmp_path / "results" / "zero_error.npz").is_file()
     again = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path, *results)
     assert "zero: done before, skipped" in again and "[1/" not in again
-    bad = subprocess.run([sys.executable, ROOT / "experiments/regenerate.py", "--only", "nope"],
-                         capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    bad = run("experiments/regenerate.py", "--only", "nope")
     assert bad.returncode == 2 and bad.stderr.strip() == "--only nope: no step matches"
     (tmp_path / "commit").write_text("0" * 40 + "\n")  # a regeneration of another commit
-    argv = [sys.executable, ROOT / "experiments/regenerate.py", "--only", "zero", "--out", tmp_path]
-    other = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
+    other = run("experiments/regenerate.py", "--only", "zero", "--out", tmp_path)
     assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
 
 
@@ -308,23 +311,17 @@ def test_parts_suite_writes_its_table_resumes_and_refuses_another_run_in_a_folde
     saved = json.loads(record)
     del saved["skill"]["spiral_yaw"]  # the shipped spiral sweeps its yaw: 0.1 rad, not 0
     (out / "baseline" / "suite.json").write_text(json.dumps(saved))
-    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
-                           "baseline", *map(str, tiny)], capture_output=True, text=True,
-                          cwd=ROOT)  # fmt: skip
+    done = run("experiments/parts_suite.py", "--policy", "baseline", *tiny)
     assert done.returncode != 0 and "(its skill differs)" in done.stderr
     (out / "baseline" / "suite.json").write_text(record)
-    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
-                           "baseline=quick", *map(str, tiny)], capture_output=True, text=True,
-                          cwd=ROOT)  # fmt: skip
+    done = run("experiments/parts_suite.py", "--policy", "baseline=quick", *tiny)
     assert (
         done.returncode != 0
         and "holds the suite of another run (its policy differs)" in done.stderr
     )
     # a constant of the skill changed for every policy is recorded, and refused beside another
     changed = ["--skill-constant", "spiral_pitch=0.002"]
-    done = subprocess.run([sys.executable, ROOT / "experiments/parts_suite.py", "--policy",
-                           "baseline", *changed, *map(str, tiny)], capture_output=True, text=True,
-                          cwd=ROOT)  # fmt: skip
+    done = run("experiments/parts_suite.py", "--policy", "baseline", *changed, *tiny)
     assert done.returncode != 0 and "(its skill differs)" in done.stderr
     run_script("experiments/parts_suite.py", "--policy", "pitch=baseline", *changed, *tiny)
     record = json.loads((out / "pitch" / "suite.json").read_text())
@@ -350,23 +347,22 @@ def _suite_csv(path: Path, success, stops, times) -> None:
 
 
 def test_parts_paired_counts_lost_and_gained_trials_per_part_and_over_all(tmp_path):
-    ref, run = tmp_path / "ref", tmp_path / "run"
+    ref, run_dir = tmp_path / "ref", tmp_path / "run"
     _suite_csv(ref / "a.csv", [1, 1, 0, 0, 1], [0, 0, 1, 0, 0], [2.0, 4.0, 60, 60, 3.0])
-    _suite_csv(run / "a.csv", [1, 0, 1, 1, 1], [0, 0, 0, 0, 0], [3.0, 60, 5.0, 6.0, 5.0])
+    _suite_csv(run_dir / "a.csv", [1, 0, 1, 1, 1], [0, 0, 0, 0, 0], [3.0, 60, 5.0, 6.0, 5.0])
     _suite_csv(ref / "b.csv", [0, 0, 1], [0, 0, 0], [60, 60, 1.0])
-    _suite_csv(run / "b.csv", [1, 0, 1], [0, 1, 0], [2.0, 60, 1.5])
+    _suite_csv(run_dir / "b.csv", [1, 0, 1], [0, 1, 0], [2.0, 60, 1.5])
     _suite_csv(ref / "c.csv", [1], [0], [1.0])  # the run lacks it: not paired
-    text = run_script("experiments/parts_paired.py", run, ref)
+    text = run_script("experiments/parts_paired.py", run_dir, ref)
     rows = {line.split(" | ")[0].strip("| *"): line for line in text.splitlines()[2:]}
     assert set(rows) == {"a", "b", "all 2"}
     # a: 60 -> 80 %, 1 lost / 2 gained; stops 1 -> 0; both inserted trials 0 and 4: 2.5 -> 4 s
     assert rows["a"] == "| a | 5 | 60.0 % | 80.0 % | 1 / 2, p = 1 | 1 → 0 | 2.50 → 4.00 s |"
     assert "| 8 | 50.0 % | 75.0 % | 1 / 3, p = 0.62 | 1 → 1 |" in rows["all 2"]
     # trials 1 and 2 of each part only
-    text = run_script("experiments/parts_paired.py", run, ref, "--trials", "1:3")
+    text = run_script("experiments/parts_paired.py", run_dir, ref, "--trials", "1:3")
     assert "| a | 2 | 50.0 % | 50.0 % | 1 / 1, p = 1 | 1 → 0 | - |" in text
-    done = subprocess.run([sys.executable, ROOT / "experiments/parts_paired.py", run, ref,
-                           "--trials", "3:1"], capture_output=True, text=True)  # fmt: skip
+    done = run("experiments/parts_paired.py", run_dir, ref, "--trials", "3:1")
     assert done.returncode != 0 and done.stderr.strip().startswith("--trials must be FIRST:END")
 
 
