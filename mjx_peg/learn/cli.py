@@ -70,11 +70,18 @@ def parser() -> argparse.ArgumentParser:
         help="where the policy starts: baseline (preset: the hand-tuned skill) or none (Brax's "
         "initialization: every number mid-range, learned from there)",
     )
-    p.add_argument(
+    skill = p.add_mutually_exclusive_group()
+    skill.add_argument(
         "--fixed-skill",
         action="store_true",
         help="learn the 38 controller numbers alone, the skill's constants as the skill sets "
-        "them (preset: they are learned beside the 38)",
+        "them (the family preset's default; the others learn them beside the 38)",
+    )
+    skill.add_argument(
+        "--learn-skill",
+        action="store_true",
+        help="learn the skill's constants beside the 38 controller numbers (every preset's "
+        "default but family's)",
     )
     p.add_argument(
         "--eval-every",
@@ -205,8 +212,8 @@ def resolve_config(args):
     if args.skill_constant:
         config = config.replace(skill_constants=config.skill_constants.replace(
             **dict(args.skill_constant)))  # fmt: skip
-    if args.fixed_skill:
-        config = config.replace(learn_search=False)
+    if args.fixed_skill or args.learn_skill:
+        config = config.replace(learn_search=args.learn_skill)
     if args.preset == "transfer" and not config.init_from:
         raise UsageError("--preset transfer needs --init-from RUN_DIR (a finished run)")
     if config.init_from:

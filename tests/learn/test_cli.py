@@ -112,6 +112,24 @@ def test_parts_names_the_suites_parts_and_scales_their_errors():
         resolve("--parts", "triangle-61")
 
 
+def test_the_family_preset_holds_the_skill_and_either_flag_sets_what_is_learned(capsys):
+    """family learns the 38 alone; --learn-skill / --fixed-skill override any preset; both at
+    once are refused."""
+    import pytest
+
+    from mjx_peg.learn import cli
+
+    def learns_skill(*argv):
+        return cli.resolve_config(cli.parser().parse_args(list(argv))).learn_search
+
+    assert not learns_skill("--preset", "family") and learns_skill("--preset", "paper")
+    assert learns_skill("--preset", "family", "--learn-skill")
+    assert not learns_skill("--preset", "paper", "--fixed-skill")
+    with pytest.raises(SystemExit):
+        learns_skill("--fixed-skill", "--learn-skill")
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
 def test_kl_target_and_std_decay_reach_the_config_and_refuse_bad_values(capsys):
     import pytest
 

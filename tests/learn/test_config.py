@@ -36,6 +36,7 @@ def test_each_preset_is_the_default_with_a_budget_or_a_shape_changed():
             "preset": "family",
             "trials": 8192,
             "linear_per_size": True,
+            "learn_search": False,
             "parts": tuple((p.shape, p.size_mm, p.hole_scale) for p in family.TRAINED),
             "shapes": ("circle", "square", "triangle", "hexagon", "rectangle"),
             "size_mm": (10.0, 25.0, 30.0, 35.0, 40.0, 50.0, 60.0, 70.0, 80.0),
