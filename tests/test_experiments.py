@@ -225,11 +225,13 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     names = [line.split(":")[0] for line in listed[:-1]]
     assert names[:2] == ["train_quick", "ship_quick"]  # shipped before anything runs `quick`
     assert names.index("skill_paper") < names.index("g_paper_spiral_50mm_small_board")
-    assert names[-1] == "g_paper_spiral_50mm_nominal_board"  # the longest last
-    assert len(names) == len(set(names)) == 45
+    assert names.index("skill_family") < names.index("g_family_spiral_50mm_small_board")
+    # the longest last, the family's compared with the paper's
+    assert names[-2:] == ["g_paper_spiral_50mm_nominal_board", "g_family_spiral_50mm_nominal_board"]
+    assert len(names) == len(set(names)) == 48
     compared = names.index("g_transfer_spiral_triangle_small_board")
     assert names.index("g_paper_spiral_triangle_small_board") < compared
-    assert re.fullmatch(r"45 steps, ~\d+ min here", listed[-1])
+    assert re.fullmatch(r"48 steps, ~\d+ min here", listed[-1])
     only = run_script("experiments/regenerate.py", "--dry-run", "--only", "arm_*_125")
     assert [line.split(":")[0] for line in only.splitlines()[:-1]] == [
         "arm_circle_125", "arm_square_125"]  # fmt: skip

@@ -53,17 +53,19 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 
 
 def test_the_shipped_policies_load_and_say_how_they_were_made():
-    """The README's policies are shipped: the controllers `paper`, `quick` and `transfer`, each
+    """The README's policies are shipped: the controllers `family`, `paper`, `quick` and
+    `transfer`, each
     running by default the shipped skill (`spiral`, the skill their published numbers used;
     `paper` was trained with an earlier one, `search`, which its config records), its
     manifest's and config's constants those of the skill (a constant added to the skill since
     they were written reads its default, off); its provenance names the commit and command that
     trained it."""
     names = shipped.shipped_names()
-    assert names == ["paper", "quick", "transfer"]
+    assert names == ["family", "paper", "quick", "transfer"]
     for name in names:
         policy = load_policy(name)
-        inputs, outputs = {"paper": (8, 38), "quick": (9, 47), "transfer": (8, 47)}[name]
+        inputs, outputs = {"family": (9, 38), "paper": (8, 38), "quick": (9, 47),
+                           "transfer": (8, 47)}[name]  # fmt: skip
         vectors = policy.vectors_for(np.zeros((2, inputs)))
         assert vectors.shape == (2, outputs) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
