@@ -158,12 +158,13 @@ class StageTimes:
         self.calls[stage] += 1
 
 
-def profile_parts(specs, params, config, compiled, unprofiled_wall=None):
-    """µs per env-step by stage of one lane in this process (`run_on_cpu(profile=...)`)."""
+def profile_parts(specs, params, config, compiled, unprofiled_wall=None, slots=None):
+    """µs per env-step by stage of one lane of `slots` (None: the engine's) in this process
+    (`run_on_cpu(profile=...)`)."""
     times = StageTimes()
     start = time.perf_counter()
     result = cpu_engine.run_on_cpu(specs, params, config, threads=1, profile=times,
-                                   compiled=compiled)  # fmt: skip
+                                   compiled=compiled, slots_per_thread=slots)  # fmt: skip
     wall = time.perf_counter() - start
     steps, periods = int(result.steps.sum()), times.calls["step"]
     shares = {f"{name}: {text}": times.seconds[name] for name, text in lanes.PROFILE_STAGES.items()}

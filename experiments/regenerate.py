@@ -17,9 +17,11 @@ range of its training parts' features (`ship_policy.record_skill`).
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 30 min nominal grids
+    python experiments/regenerate.py --redo train_quick    # steps done before, run again
 
 A killed run resumes: rerun the same command. Each finished step leaves OUT/NAME.done and is
-skipped; a grid is removed before its first start only (a stale grid of the skill before would
+skipped (`--redo` runs such steps again from their start, their output folder removed first); a
+grid is removed before its first start only (a stale grid of the skill before would
 otherwise be resumed under the same config), then eval.py resumes it; a training resumes from
 its checkpoints. OUT belongs to one commit (OUT/commit): after a new commit, use a new OUT.
 Logs go to OUT (default runs/regenerate); the grids to docs/eval/, the contact sets, zero error
@@ -224,6 +226,10 @@ def main(argv=None) -> int:
     p.add_argument(
         "--skip-nominal", action="store_true", help="not the nominal grids (30 min each)"
     )
+    p.add_argument("--redo", default="",
+                   help="comma-separated fnmatch patterns of steps to run again from their "
+                   "start, done or not (a training's run folder, a grid's folder removed "
+                   "first)")  # fmt: skip
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     p.add_argument("--results", default=RESULTS,
                    help=f"the contact sets, zero error and the arm's runs (default: {RESULTS}, "
@@ -256,6 +262,14 @@ def main(argv=None) -> int:
               f"not of HEAD {head[:7]}: give a new --out", file=sys.stderr)  # fmt: skip
         return 2
     mark.write_text(head + "\n")
+    redo = [x for x in args.redo.split(",") if x]
+    if redo and not any(fnmatch.fnmatch(s.name, x) for s in chosen for x in redo):
+        print(f"--redo {args.redo}: no chosen step matches", file=sys.stderr)
+        return 2
+    for s in chosen:
+        if any(fnmatch.fnmatch(s.name, x) for x in redo):
+            for marker in ("done", "started"):  # no .started: its fresh path is removed at start
+                (out / f"{s.name}.{marker}").unlink(missing_ok=True)
     try:
         return run(chosen, out, str(args.results))
     except KeyboardInterrupt:

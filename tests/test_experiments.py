@@ -243,6 +243,12 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     assert (tmp_path / "results" / "zero_error.npz").is_file()
     again = run_script("experiments/regenerate.py", "--only", "zero", "--out", tmp_path, *results)
     assert "zero: done before, skipped" in again and "[1/" not in again
+    redone = run_script("experiments/regenerate.py", "--only", "zero", "--redo", "zero",
+                        "--out", tmp_path, *results)  # fmt: skip
+    assert "[1/1] zero" in redone and "done before" not in redone
+    assert (tmp_path / "zero.done").is_file()
+    stray = run("experiments/regenerate.py", "--only", "zero", "--redo", "g_*", "--out", tmp_path)
+    assert stray.returncode == 2 and stray.stderr.strip() == "--redo g_*: no chosen step matches"
     bad = run("experiments/regenerate.py", "--only", "nope")
     assert bad.returncode == 2 and bad.stderr.strip() == "--only nope: no step matches"
     (tmp_path / "commit").write_text("0" * 40 + "\n")  # a regeneration of another commit
@@ -398,3 +404,37 @@ def test_the_ur5e_table_keeps_a_cell_of_its_skill_and_refuses_one_of_another(tmp
     assert rows == [{"trial": "0", "success": "1", "time_s": "2.5", "protective_stop": "0"}]
     with pytest.raises(SystemExit, match="holds a cell of another skill"):
         ur5e_table.run_cell("baseline", "circle", 50, 6, 1, cell, 0, (("spiral_yaw", 0.1),))
+
+
+def test_slot_arithmetic_compares_slot_counts_and_probes_one_period():
+    """experiments/slot_arithmetic.py on 24 trials at 64 and 32 slots: a count of the trials
+    not bit-identical, none changed in outcome at this size, then one trial's period in every
+    slot of a 32- and a 512-slot program (slot 0 never differs from itself)."""
+    out = run_script("experiments/slot_arithmetic.py", "--trials", "24", "--slots", "64,32",
+                     "--target", "3", "--at", "20", "--probe-slots", "32")  # fmt: skip
+    compared = re.search(r"^32 slots against 64: (\d+) of 24 trials differ .*, (\d+) in outcome$",
+                         out, flags=re.M)  # fmt: skip
+    assert compared and int(compared[1]) <= 24 and int(compared[2]) <= int(compared[1])
+    assert "trial 3 at period 20: slot " in out
+    for size in (32, 512):
+        probe = re.search(rf"its row in all {size} slots: alignment differs from slot 0 in slots "
+                          r"\[([\d, ]*)\], torques in \[([\d, ]*)\]", out)  # fmt: skip
+        assert probe, out
+        for listed in probe.groups():
+            slots = [int(x) for x in listed.split(",") if x.strip()]
+            assert 0 not in slots and all(0 < k < size for k in slots)
+
+
+def test_grid_profile_reports_each_stage_and_the_physics_by_part():
+    """benchmarks/grid_profile.py with tiny arguments: one lane's stages in µs per env-step,
+    which add up to its total, and a step's cost of each part under every collision option."""
+    out = run_script("benchmarks/grid_profile.py", "--trials", "8", "--slots", "32",
+                     "--physics-trials", "2")  # fmt: skip
+    stages = [float(x) for x in re.findall(r"^  [a-z][^:]*: [^\n]*: (\d+\.\d+)$", out, re.M)]
+    total = float(re.search(r"^  total: (\d+\.\d+) ", out, re.M)[1])
+    assert len(stages) == 8 and abs(sum(stages) - total) < 0.05
+    names = ("as shipped", "ccd_iterations 10", "ccd_tolerance 1e-4", "libccd", "mid-phase off")
+    for name in names:
+        (line,) = re.findall(rf"^  {name}: (.+)$", out, re.M)
+        costs = re.findall(r"(circle|square) (\d+\.\d+)", line)
+        assert costs and all(float(us) > 0 for _, us in costs), line

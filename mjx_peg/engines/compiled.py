@@ -27,8 +27,9 @@ LOAD_ROWS = 16  # new trials' constants per load call
 
 def slot_count(slots: int) -> int:
     """The compiled programs' slot count for a lane of `slots` rows: 32 or 64, then a multiple
-    of 64 (few sizes to compile, little padding; from 32 up a trial's numbers do not depend on
-    it: docs/design/compiled_period.md)."""
+    of 64 (few sizes to compile, little padding). A trial's numbers do not depend on the count,
+    but for one in the program's last four slots, where a few operations round otherwise
+    (docs/design/compiled_period.md, "A trial's last bits and its slot")."""
     if slots <= 32:
         return 32
     return -(-slots // 64) * 64

@@ -12,7 +12,10 @@ simulated time actually used. Live trials are rows [0, n), sorted by scene and s
 trial's constants and state (`period.TrialConsts`, `period.TrialState`) move with it when rows
 are re-sorted. Lanes run in Python threads (`engines/threaded.py`): while one steps in C, another
 runs its NumPy pass. A trial's arithmetic does not depend on its lane, row, batch or thread
-count, so results are bit-identical whatever the threads, slots and batch threads (tested).
+count, so results are bit-identical whatever the threads, slots and batch threads (tested). The
+compiled pass (`engines/compiled.py`) is not quite so: a trial in one of the last four slots of
+its program computes a few operations in another rounding (docs/design/compiled_period.md, "A
+trial's last bits and its slot").
 
 Profiling: `threaded.run_in_threads(..., profile=f)` calls `f(stage, seconds)` in the lane's
 thread for each stage of `PROFILE_STAGES` as it ends (wall time, `time.perf_counter`); without it

@@ -3,7 +3,8 @@ batched in NumPy over every live trial at once (`engines/lanes.py`, `engines/per
 
 `run_on_cpu` runs the trials in lanes of this process (`threaded.run_in_threads`), in
 worker processes (`processes.run_in_processes`) or on a Ray cluster (`ray_pool.run_on_cluster`);
-all three give the same results, bit for bit.
+all three give the same results, bit for bit (the compiled pass: but for the last bits of the
+few trials that sit in the last slots of a program, docs/design/compiled_period.md).
 """
 
 from __future__ import annotations
@@ -57,7 +58,10 @@ def run_on_cpu(
     compiled: each lane's control period compiled by XLA (`engines/compiled.py`: the same
     functions, float64, in XLA's order of operations) or the NumPy pass (the reference, and the
     robot's); default: compiled, unless the environment variable MJX_PEG_CONTROL_PASS says
-    numpy. Either gives the same results whatever the lanes, slots, processes or cluster; the two
+    numpy. The NumPy pass gives the same results whatever the lanes, slots, processes or
+    cluster; the compiled pass too, but for a trial in one of the last four slots of a program,
+    whose few operations round otherwise (the same layout, the same bits; another layout can move
+    a chaotic trial: docs/design/compiled_period.md, "A trial's last bits and its slot"); the two
     agree to rounding, which contact can grow into a different trajectory (BENCHMARKS.md, "The
     compiled period").
     """

@@ -3,9 +3,10 @@
 `mujoco.run_on_cpu(..., processes=P)` splits the trials into P interleaved shards (trial k goes
 to shard k mod P) and runs each in a worker process with `threads` lanes (default 1); results
 come back in spec order, bit-identical to running them in this process (a trial's result depends
-on its spec and parameters only). Why: a lane holds the GIL for its whole NumPy pass, so lanes as
-threads of one process stop scaling after a few lanes; processes do not share it (the
-measurements: docs/design/worker_processes.md).
+on its spec and parameters only; under the compiled pass, also on whether it sat in the last
+slots of a program: docs/design/compiled_period.md, "A trial's last bits and its slot"). Why: a
+lane holds the GIL for its whole NumPy pass, so lanes as threads of one process stop scaling
+after a few lanes; processes do not share it (the measurements: docs/design/worker_processes.md).
 
 The workers are spawned on first use and kept for the next call of the same size (a training run
 calls the engine once per iteration), each keeping its simulations between calls. A worker dies

@@ -7,11 +7,12 @@ cluster offers (`Lane`: each runs `threaded.run_in_threads` on its share in-proc
 does), splits the trials into interleaved pieces (trial k to piece k mod P: one per actor,
 up to four per actor for large calls), hands each actor the next piece as it finishes one, and
 merges the results in spec order. A trial's result depends on its spec and parameters only, so
-the results are bit-identical to a local run. An actor lost with its node is restarted and its
-call retried by Ray (`max_restarts`, `max_task_retries`), with the same result. Arguments and
-results travel through Ray's object store between this package's own processes; nothing is
-read from disk. Ray is imported only here, and only when asked for (`pip install -e
-".[cluster]"`).
+the results are bit-identical to a local run (the compiled pass: but for the last bits of a
+trial in the last slots of a program, docs/design/compiled_period.md). An actor lost with its
+node is restarted and its call retried by Ray (`max_restarts`, `max_task_retries`), with the
+same result. Arguments and results travel through Ray's object store between this package's own
+processes; nothing is read from disk. Ray is imported only here, and only when asked for
+(`pip install -e ".[cluster]"`).
 """
 
 from __future__ import annotations

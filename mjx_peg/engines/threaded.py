@@ -2,7 +2,9 @@
 run: `lanes.Lane` (NumPy, the reference) or `compiled.CompiledLane` (XLA).
 
 `run_in_threads` hands the trials out from one `lanes.Queue` to `threads` lanes: while one steps
-in C, another runs its pass. Results are bit-identical whatever the threads and slots (tested).
+in C, another runs its pass. Results are bit-identical whatever the threads and slots (tested;
+the compiled pass but for a trial's last bits in the last slots of its program:
+docs/design/compiled_period.md, "A trial's last bits and its slot").
 """
 
 from __future__ import annotations
