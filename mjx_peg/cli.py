@@ -233,7 +233,7 @@ def add_processes_option(parser: argparse.ArgumentParser, lanes_flag: str) -> No
         type=PROCESSES,
         help=f"CPU engine: its lanes in this many worker processes, {lanes_flag} lanes each "
         f"(default: one per core, {cores()} here; processes scale past the GIL, the same "
-        "results); 0: lanes as threads of this process",
+        "results but for a few trials' last bits); 0: lanes as threads of this process",
     )
 
 
@@ -309,8 +309,9 @@ def add_ray_option(parser: argparse.ArgumentParser) -> None:
         type=ray_address,
         metavar="ADDRESS",
         help="CPU engine: run the trials on a Ray cluster, one lane per CPU, the same results "
-        "(auto: the cluster `ray start` runs on this node; HOST:PORT: another; no address: a "
-        'local one on this machine); needs the cluster extra: pip install -e ".[cluster]"',
+        "but for a few trials' last bits (auto: the cluster `ray start` runs on this node; "
+        "HOST:PORT: another; no address: a local one on this machine); needs the cluster "
+        'extra: pip install -e ".[cluster]"',
     )
 
 
