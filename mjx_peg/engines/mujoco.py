@@ -61,7 +61,8 @@ def run_on_cpu(
     numpy. The NumPy pass gives the same results whatever the lanes, slots, processes or
     cluster; the compiled pass too, but for a trial in one of the last four slots of a program,
     whose few operations round otherwise (the same layout, the same bits; another layout can move
-    a chaotic trial: docs/design/compiled_period.md, "A trial's last bits and its slot"); the two
+    a chaotic trial; lanes as threads of one process share one queue, so their layout follows the
+    threads' timing: docs/design/compiled_period.md, "A trial's last bits and its slot"); the two
     agree to rounding, which contact can grow into a different trajectory (BENCHMARKS.md, "The
     compiled period").
     """
