@@ -17,14 +17,13 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
 from pathlib import Path
 
 import mujoco
 import numpy as np
-from trials import profile_parts, record_states, trial_model  # benchmarks/ is on sys.path
+from physics import bare_steps  # benchmarks/ is on sys.path
+from trials import profile_parts, record_states
 
-from mjx_peg.engines.sims import STATE
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.shipped import resolve_policy
@@ -68,23 +67,11 @@ def physics_by_part(trials: int) -> dict[str, dict[str, float]]:
     specs = sample_trials(task, 0, trials)
     config = TrialConfig(time_limit_s=20.0, end_settled=False, search=skill_config("spiral"))
     snaps = record_states(specs, as_controller_params(baseline_params(), trials), config, 200)
+    parts = np.array([SHAPES[int(specs.shape_id[index])] for index, _ in snaps])
     out = {}
     for name, change in VARIANTS.items():
-        models, per = {}, {}
-        for index, state in snaps:
-            if index not in models:
-                m = trial_model(specs, index)
-                change(m)
-                models[index] = (m, mujoco.MjData(m))
-            m, d = models[index]
-            mujoco.mj_setState(m, d, state, STATE)
-            mujoco.mj_step(m, d)
-            start = time.perf_counter()
-            for _ in range(10):
-                mujoco.mj_step(m, d)
-            part = SHAPES[int(specs.shape_id[index])]
-            per.setdefault(part, []).append(1e5 * (time.perf_counter() - start))
-        out[name] = {part: float(np.mean(v)) for part, v in per.items()}
+        micros = bare_steps(specs, snaps, change=change)[0][:, 1]
+        out[name] = {part: float(micros[parts == part].mean()) for part in np.unique(parts)}
     return out
 
 

@@ -40,13 +40,16 @@ from mjx_peg.world.task import TaskConfig, sample_trials
 CONTACT_BINS = ((0, 0), (1, 4), (5, 8), (9, 1000))
 
 
-def bare_steps(specs, snaps, steps: int = 10):
-    """(contacts, µs per step) of `steps` bare mj_step calls from each snapshot."""
+def bare_steps(specs, snaps, steps: int = 10, change=None):
+    """(contacts, µs per step) of `steps` bare mj_step calls from each snapshot; `change(model)`,
+    if given, edits each trial's model (its options) before its first step."""
     models = {}
     rows = []
     for index, state in snaps:
         if index not in models:
             m = trial_model(specs, index)
+            if change is not None:
+                change(m)
             models[index] = (m, mujoco.MjData(m))
         m, d = models[index]
         mujoco.mj_setState(m, d, state, STATE)

@@ -263,13 +263,13 @@ def main(argv=None) -> int:
         return 2
     mark.write_text(head + "\n")
     redo = [x for x in args.redo.split(",") if x]
-    if redo and not any(fnmatch.fnmatch(s.name, x) for s in chosen for x in redo):
+    again = [s for s in chosen if any(fnmatch.fnmatch(s.name, x) for x in redo)]
+    if redo and not again:
         print(f"--redo {args.redo}: no chosen step matches", file=sys.stderr)
         return 2
-    for s in chosen:
-        if any(fnmatch.fnmatch(s.name, x) for x in redo):
-            for marker in ("done", "started"):  # no .started: its fresh path is removed at start
-                (out / f"{s.name}.{marker}").unlink(missing_ok=True)
+    for s in again:
+        for marker in ("done", "started"):  # no .started: its fresh path is removed at start
+            (out / f"{s.name}.{marker}").unlink(missing_ok=True)
     try:
         return run(chosen, out, str(args.results))
     except KeyboardInterrupt:
