@@ -8,7 +8,9 @@ the simulated arm as the paper ran the real one: effort commands at 125 Hz over 
 physics, a 5 ms actuator lag, the policy's numbers for each trial's estimated hole, `--trials`
 trials (the paper: 10), `--skill-constant` (repeatable) set in each policy's skill. A cell
 already run (its runs.csv holds every trial, its skill.json the skill asked for) is kept, so a
-killed run resumes; a cell of another skill is refused. Then OUT/table.md and OUT/table.csv:
+killed run resumes; a cell of another skill is refused. `--jobs` cells run at once (default:
+the cores this process may use; each cell's trials run one after another on one core, and every
+cell's result is the same whatever the jobs). Then OUT/table.md and OUT/table.csv:
 per cell our successes, the rate with its 95 % Wilson interval, protective stops, the median
 time, and the paper's x / 10 beside it, with the one-sided p that our rate is below the paper's
 real-robot rate: Fisher's exact test on the two counts, which carries the paper's own 10 trials'
@@ -24,11 +26,13 @@ import json
 import math
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import fisher_exact
 
+from mjx_peg.cores import cores
 from mjx_peg.skill.skill_cli import skill_constant
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,6 +121,8 @@ def main(argv=None) -> int:
     p.add_argument("--trials", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=Path("docs/results/ur5e_table"))
+    p.add_argument("--jobs", type=int, default=cores(),
+                   help="cells run at once (default: the cores this process may use)")  # fmt: skip
     p.add_argument(
         "--skill-constant",
         action="append",
@@ -126,6 +132,8 @@ def main(argv=None) -> int:
         help="a constant of every cell's skill set (repeatable)",
     )
     args = p.parse_args(argv)
+    if args.jobs < 1:
+        raise SystemExit(f"--jobs must be at least 1, got {args.jobs}")
     changes = tuple(args.skill_constant)
     policies = {}
     for item in args.policy_for:
@@ -133,12 +141,18 @@ def main(argv=None) -> int:
         if not policy:
             raise SystemExit(f"--policy-for takes SHAPE=POLICY, got {item!r}")
         policies[shape] = policy
-    rows = []
-    for k, (shape, size, linear, paper) in enumerate(CELLS):
+
+    def cell(k: int) -> list[dict]:
+        shape, size, linear, _ = CELLS[k]
+        out = args.out / cell_name(shape, size, linear)
         policy = policies.get(shape, args.policy)
-        name = cell_name(shape, size, linear)
-        runs = run_cell(policy, shape, size, linear, args.trials, args.out / name, args.seed + k,
-                        changes)  # fmt: skip
+        return run_cell(policy, shape, size, linear, args.trials, out, args.seed + k, changes)
+
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:  # each waits on its subprocess
+        ran = list(pool.map(cell, range(len(CELLS))))
+    rows = []
+    for (shape, size, linear, paper), runs in zip(CELLS, ran, strict=True):
+        policy = policies.get(shape, args.policy)
         ok = np.array([int(r["success"]) for r in runs], bool)
         times = np.array([float(r["time_s"]) for r in runs])[ok]
         stops = sum(int(r["protective_stop"]) for r in runs)

@@ -406,6 +406,32 @@ def test_the_ur5e_table_keeps_a_cell_of_its_skill_and_refuses_one_of_another(tmp
         ur5e_table.run_cell("baseline", "circle", 50, 6, 1, cell, 0, (("spiral_yaw", 0.1),))
 
 
+def test_the_ur5e_tables_cells_run_as_jobs_keep_the_papers_order(tmp_path):
+    """--jobs 2 over finished cells: table.csv lists the cells in the paper's order, each with
+    its own runs; --jobs 0 is one line."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import ur5e_table
+
+    from mjx_peg.policy.export import choose_skill
+
+    record = json.dumps(choose_skill(None, "baseline").record())
+    for k, (shape, size, linear, _) in enumerate(ur5e_table.CELLS):
+        cell = tmp_path / ur5e_table.cell_name(shape, size, linear)
+        cell.mkdir()
+        (cell / "runs.csv").write_text(f"trial,success,time_s,protective_stop\n0,{k % 2},2.5,0\n")
+        (cell / "skill.json").write_text(record)
+    argv = ["--policy", "baseline", "--trials", "1", "--out", str(tmp_path)]
+    assert ur5e_table.main([*argv, "--jobs", "2"]) == 0
+    with open(tmp_path / "table.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["shape"], int(r["size_mm"]), int(r["linear_mm"])) for r in rows] == [
+        c[:3] for c in ur5e_table.CELLS
+    ]
+    assert [int(r["successes"]) for r in rows] == [k % 2 for k in range(len(rows))]
+    with pytest.raises(SystemExit, match="--jobs must be at least 1"):
+        ur5e_table.main([*argv, "--jobs", "0"])
+
+
 def test_slot_arithmetic_compares_slot_counts_and_probes_one_period():
     """experiments/slot_arithmetic.py on 24 trials at 64 and 32 slots: a count of the trials
     not bit-identical, none changed in outcome at this size, then one trial's period in every

@@ -31,6 +31,7 @@ from mjx_peg.learn.monitor import Board, HeldOut
 from mjx_peg.learn.run_dir import RunDir
 from mjx_peg.policy.export import PolicyError, load_policy, save_policy
 from mjx_peg.policy.observation import PRIVILEGED_NAMES
+from mjx_peg.skill.params import N_LEARNED, N_PARAMS
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,10 @@ def _from_export(config: TrainConfig, template: ppo.TrainingState, source: RunDi
             "kernel": jnp.concatenate([head["kernel"], jnp.zeros((len(head["kernel"]), extra))], 1),
             "bias": jnp.concatenate([head["bias"], jnp.asarray(ppo.prior_action(config)[width:])]),
         }
+    elif width == N_LEARNED and config.action_size == N_PARAMS:
+        # the 38 of a policy that also learned the skill's constants: this run holds those at
+        # the skill's values, so its controller starts from the source's and the rest is dropped
+        head = {"kernel": head["kernel"][:, :N_PARAMS], "bias": head["bias"][:N_PARAMS]}
     elif width > config.action_size:
         raise UsageError(
             f"--init-from {source.path} outputs {width} numbers, this run learns "

@@ -116,6 +116,27 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     )
 
 
+def test_a_fixed_skill_run_from_a_policy_of_47_starts_at_its_38():
+    """--fixed-skill from a policy that also learned the skill's constants: the run's 38
+    controller numbers start at the source's, its constants are the skill's."""
+    from mjx_peg.learn import cli
+    from mjx_peg.learn.ppo import init_state, make_networks
+    from mjx_peg.learn.trainer import load_init
+
+    source = ROOT / "docs/design/data/learning/paper_shipped/seed-0"
+    args = ["--preset", "transfer", "--fixed-skill", "--init-from", str(source)]
+    config = cli.resolve_config(cli.parser().parse_args(args))
+    assert config.action_size == 38
+    state = load_init(config, init_state(config, make_networks(config)))
+    learned = load_policy(source)
+    learned = dataclasses.replace(learned, part_range=None)
+    width = len(observation.LAYOUTS[config.observation])  # the source's layout
+    obs = np.random.default_rng(3).normal(size=(256, width)).astype(np.float32)
+    action = np.asarray(deterministic_actions(config, state, jnp.asarray(obs)))
+    assert action.shape == (256, 38) and learned.act(obs).shape == (256, 47)
+    assert np.max(np.abs(action - learned.act(obs)[:, :38])) < 1e-5
+
+
 @pytest.mark.slow
 def test_sigkill_then_rerun_equals_an_uninterrupted_run(tiny_run, tmp_path, tiny_args, train_py):
     reference, _ = tiny_run
