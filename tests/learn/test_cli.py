@@ -1,10 +1,13 @@
 """learn/cli.py (`python train.py`): flags into a TrainConfig; bad input is one line."""
 
 import json
+from pathlib import Path
 
 import pytest
 
 from mjx_peg.learn.curves import read_table
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_full_time_limit_flag(tiny_args, tiny_config):
@@ -77,8 +80,9 @@ def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_
 
 
 def test_init_from_takes_its_runs_observation_layout():
-    """--init-from a run trained on the names layout (policies/paper) reads that layout; asking
-    for another is one line; a new run reads the geometry layout unless told."""
+    """--init-from a run trained on the names layout (the `paper` shipped until 2026-12, kept in
+    docs/design/data) reads that layout; asking for another is one line; a new run reads the
+    geometry layout unless told."""
     import pytest
 
     from mjx_peg.errors import UsageError
@@ -87,11 +91,13 @@ def test_init_from_takes_its_runs_observation_layout():
     def resolve(*argv):
         return cli.resolve_config(cli.parser().parse_args(list(argv)))
 
-    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "names"
+    names = str(ROOT / "docs/design/data/learning/paper_search_38")
+    assert resolve("--preset", "transfer", "--init-from", names).observation == "names"
+    assert resolve("--preset", "transfer", "--init-from", "paper").observation == "geometry"
     assert resolve().observation == "geometry"
     assert resolve("--observation", "names").observation == "names"
     with pytest.raises(UsageError, match="--observation geometry: .* trained on the names layout"):
-        resolve("--preset", "transfer", "--init-from", "paper", "--observation", "geometry")
+        resolve("--preset", "transfer", "--init-from", names, "--observation", "geometry")
 
 
 def test_parts_names_the_suites_parts_and_scales_their_errors():

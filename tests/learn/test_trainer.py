@@ -78,19 +78,21 @@ def test_a_kept_checkpoint_exports_the_policy_the_run_had_then(tiny_run, tmp_pat
 
 
 def test_init_from_a_shipped_policy_starts_at_its_actions():
-    """A run without checkpoints (policies/paper) starts from its exported mean path and
-    observation statistics, counted as its trials; the exploration std and the critic fresh."""
+    """A run without checkpoints (a shipped policy of the 38 alone: the `paper` shipped until
+    2026-12) starts from its exported mean path and observation statistics, counted as its
+    trials; the exploration std and the critic fresh."""
     from mjx_peg.learn import cli
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.learn.trainer import load_init
 
+    source = ROOT / "docs/design/data/learning/paper_search_38"
     config = cli.resolve_config(
-        cli.parser().parse_args(["--preset", "transfer", "--init-from", "paper"])
+        cli.parser().parse_args(["--preset", "transfer", "--init-from", str(source)])
     )
-    assert Path(config.init_from).resolve() == ROOT / "policies" / "paper"
+    assert Path(config.init_from).resolve() == source
     template = init_state(config, make_networks(config))
     state = load_init(config, template)
-    shipped = load_policy("paper")
+    shipped = load_policy(source)
     assert shipped.part_range is not None  # its network carries over, not its training parts
     shipped = dataclasses.replace(shipped, part_range=None)
     obs = np.random.default_rng(2).normal(size=(256, observation.OBS_SIZE)).astype(np.float32)

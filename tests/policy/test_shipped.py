@@ -30,6 +30,11 @@ def shelf(tmp_path, monkeypatch):
     return folder
 
 
+# the `paper` shipped until 2026-12 (the 38 alone, the names layout)
+PAPER_38 = str(shipped.SHIPPED_DIR.parent / "docs/design/data/learning/paper_search_38")
+TRANSFER = (9, 47)  # inputs and outputs of the shipped transfer
+
+
 def test_names_resolve_and_paths_win(shelf, tmp_path, monkeypatch):
     assert shipped.shipped_names() == ["mini"]
     monkeypatch.chdir(tmp_path)
@@ -55,17 +60,16 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 def test_the_shipped_policies_load_and_say_how_they_were_made():
     """The README's policies are shipped: the controllers `family`, `paper`, `quick` and
     `transfer`, each
-    running by default the shipped skill (`spiral`, the skill their published numbers used;
-    `paper` was trained with an earlier one, `search`, which its config records), its
-    manifest's and config's constants those of the skill (a constant added to the skill since
-    they were written reads its default, off); its provenance names the commit and command that
-    trained it."""
+    running by default the shipped skill (`spiral`, the skill it was trained with and its
+    published numbers used), its manifest's and config's constants those of the skill (a constant
+    added to the skill since they were written reads its default, off); its provenance names the
+    commit and command that trained it."""
     names = shipped.shipped_names()
     assert names == ["family", "paper", "quick", "transfer"]
     for name in names:
         policy = load_policy(name)
-        inputs, outputs = {"family": (9, 38), "paper": (8, 38), "quick": (9, 47),
-                           "transfer": (8, 47)}[name]  # fmt: skip
+        inputs, outputs = {"family": (9, 38), "paper": (9, 47), "quick": (9, 47),
+                           "transfer": TRANSFER}[name]  # fmt: skip
         vectors = policy.vectors_for(np.zeros((2, inputs)))
         assert vectors.shape == (2, outputs) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
@@ -76,8 +80,7 @@ def test_the_shipped_policies_load_and_say_how_they_were_made():
         assert recorded == spiral
         assert manifest["skill"]["constants"].items() <= spiral.record()["constants"].items()
         config = json.loads((folder / "config.json").read_text())
-        trained = "search" if name == "paper" else "spiral"
-        assert policy.trained_skill.name == config["skill"] == trained
+        assert policy.trained_skill.name == config["skill"] == "spiral"
         assert constants_from_record(config["skill_constants"]) == policy.trained_skill.config
         provenance = json.loads((folder / "provenance.json").read_text())
         assert len(provenance["commit"]) == 40 and "train.py" in provenance["command"]
@@ -129,18 +132,18 @@ def _geometry_observation(specs, low, high):
     return np.concatenate([pose, np.clip(part, low, high)], -1)
 
 
-@pytest.mark.parametrize("name", ["paper", "quick", "transfer"])
+@pytest.mark.parametrize("name", ["paper", "quick", "transfer", PAPER_38])
 def test_the_shipped_policies_act_as_their_network_on_their_training_parts(name):
-    """Each reads its layout (`paper`'s manifest predates the layouts: names; `transfer` names
-    it, as `paper` it started from; `quick`, trained since, the geometry) and gives, bit for bit,
-    the numbers its network gives for the observation it was trained on, a part beyond its
+    """Each reads its layout (the `paper` shipped until 2026-12, kept in docs/design/data, has a
+    manifest that predates the layouts: names; the shipped ones the geometry) and gives, bit for
+    bit, the numbers its network gives for the observation it was trained on, a part beyond its
     training parts held to the range they span; on the robot too."""
     from mjx_peg.policy import network
     from mjx_peg.robot.runtime import HoleEstimate, controller_vector
     from mjx_peg.world.task import TaskConfig, sample_trials
 
     policy = load_policy(name)
-    layout = {"paper": None, "quick": "geometry", "transfer": "names"}[name]
+    layout = None if name == PAPER_38 else "geometry"
     assert policy.layout == (layout or "names")
     assert policy.manifest["observation"].get("layout") == layout
     assert policy.sizes_mm == (50.0,)
