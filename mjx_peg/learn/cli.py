@@ -75,14 +75,14 @@ def parser() -> argparse.ArgumentParser:
         "--fixed-skill",
         action="store_true",
         help="learn the 38 controller numbers alone, the skill's constants as the skill sets "
-        "them (the family preset's default; the others learn them beside the 38); from an "
-        "--init-from policy of 47 numbers, its 38 start the run",
+        "them (the family and transfer presets' default; the others learn them beside the 38); "
+        "from an --init-from policy of 47 numbers, its 38 start the run",
     )
     skill.add_argument(
         "--learn-skill",
         action="store_true",
         help="learn the skill's constants beside the 38 controller numbers (every preset's "
-        "default but family's)",
+        "default but family's and transfer's)",
     )
     p.add_argument(
         "--eval-every",

@@ -119,8 +119,8 @@ def test_parts_names_the_suites_parts_and_scales_their_errors():
 
 
 def test_the_family_preset_holds_the_skill_and_either_flag_sets_what_is_learned(capsys):
-    """family learns the 38 alone; --learn-skill / --fixed-skill override any preset; both at
-    once are refused."""
+    """family and transfer learn the 38 alone; --learn-skill / --fixed-skill override any
+    preset; both at once are refused."""
     import pytest
 
     from mjx_peg.learn import cli
@@ -129,6 +129,7 @@ def test_the_family_preset_holds_the_skill_and_either_flag_sets_what_is_learned(
         return cli.resolve_config(cli.parser().parse_args(list(argv))).learn_search
 
     assert not learns_skill("--preset", "family") and learns_skill("--preset", "paper")
+    assert not learns_skill("--preset", "transfer", "--init-from", "paper")
     assert learns_skill("--preset", "family", "--learn-skill")
     assert not learns_skill("--preset", "paper", "--fixed-skill")
     with pytest.raises(SystemExit):

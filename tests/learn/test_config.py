@@ -31,7 +31,13 @@ def test_each_preset_is_the_default_with_a_budget_or_a_shape_changed():
     assert changed == {
         "quick": {},
         "paper": {"preset": "paper", "trials": 8192},
-        "transfer": {"preset": "transfer", "shapes": ("triangle",), "trials": 800, "num_envs": 40},
+        "transfer": {
+            "preset": "transfer",
+            "shapes": ("triangle",),
+            "trials": 800,
+            "num_envs": 40,
+            "learn_search": False,
+        },
         "family": {
             "preset": "family",
             "trials": 8192,
