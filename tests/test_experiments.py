@@ -257,21 +257,20 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
 
 
 def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch):
-    """`ship_policy.record_skill` on a copy of policies/paper written before skills were
-    recorded: by default it runs the skill it trained with (`search`, as it was); with
-    --skill spiral its manifest and config.json are the shipped ones, byte for byte, and its
-    policy.npz is untouched."""
+    """`ship_policy.record_skill` on a copy of the `paper` shipped until 2026-12 (trained with
+    the `search` skill) as written before skills were recorded: by default it runs the skill it
+    trained with (`search`, as it was); with --skill spiral its manifest and config.json are the
+    ones it was shipped with, byte for byte, and its policy.npz is untouched."""
     import json
     import shutil
 
     from mjx_peg.policy.export import load_policy
-    from mjx_peg.policy.shipped import SHIPPED_DIR
     from mjx_peg.skill.search import SKILLS, NamedSkill, SkillConfig
 
     monkeypatch.syspath_prepend(str(ROOT / "experiments"))
     import ship_policy
 
-    shipped, copy = SHIPPED_DIR / "paper", tmp_path / "paper"
+    shipped, copy = ROOT / "docs/design/data/learning/paper_search_38", tmp_path / "paper"
     shutil.copytree(shipped, copy)
     manifest = json.loads((copy / "manifest.json").read_text())
     del manifest["skill"], manifest["config"]["skill_constants"]
