@@ -80,15 +80,15 @@ def test_a_kept_checkpoint_exports_the_policy_the_run_had_then(tiny_run, tmp_pat
 def test_init_from_a_shipped_policy_starts_at_its_actions():
     """A run without checkpoints (a shipped policy of the 38 alone: the `paper` shipped until
     2026-12) starts from its exported mean path and observation statistics, counted as its
-    trials; the exploration std and the critic fresh."""
+    trials, the skill's constants it did not learn at the prior; the exploration std and the
+    critic fresh."""
     from mjx_peg.learn import cli
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.learn.trainer import load_init
 
     source = ROOT / "docs/design/data/learning/paper_search_38"
-    config = cli.resolve_config(
-        cli.parser().parse_args(["--preset", "transfer", "--init-from", str(source)])
-    )
+    args = ["--preset", "transfer", "--learn-skill", "--init-from", str(source)]
+    config = cli.resolve_config(cli.parser().parse_args(args))
     assert Path(config.init_from).resolve() == source
     template = init_state(config, make_networks(config))
     state = load_init(config, template)

@@ -32,7 +32,7 @@ def shelf(tmp_path, monkeypatch):
 
 # the `paper` shipped until 2026-12 (the 38 alone, the names layout)
 PAPER_38 = str(shipped.SHIPPED_DIR.parent / "docs/design/data/learning/paper_search_38")
-TRANSFER = (9, 47)  # inputs and outputs of the shipped transfer
+TRANSFER = (9, 38)  # inputs and outputs of the shipped transfer: the 38, the skill held
 
 
 def test_names_resolve_and_paths_win(shelf, tmp_path, monkeypatch):
