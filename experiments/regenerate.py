@@ -13,7 +13,7 @@ manifest records again that it runs the spiral skill, with the spiral's constant
 so that `--policy paper` runs it without `--skill`, as the README writes its commands, and the
 range of its training parts' features (`ship_policy.record_skill`).
 
-    python experiments/regenerate.py                       # everything, ~250 min on 2 cores
+    python experiments/regenerate.py                       # everything, ~220 min on 2 cores
     python experiments/regenerate.py --dry-run             # the commands, nothing run
     python experiments/regenerate.py --only 'g_*,paper46'  # some steps (fnmatch patterns)
     python experiments/regenerate.py --skip-nominal        # all but the 30 min nominal grids
@@ -152,7 +152,7 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
                            "paper", *family, "--out", f"{results}/parts"), 3900,
                  f"{results}/parts")
     ur5e = Step("ur5e_table", (py, "experiments/ur5e_table.py", *paper, "--policy-for",
-                               "triangle=transfer", "--out", f"{results}/ur5e_table"), 2400,
+                               "triangle=transfer", "--out", f"{results}/ur5e_table"), 1050,
                 f"{results}/ur5e_table")
     vision = Step("vision", (py, "-m", "mjx_peg.vision", "act", *paper, "--out",
                              "docs/vision/act"), 310, "docs/vision/act")
