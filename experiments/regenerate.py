@@ -181,6 +181,17 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"
 
 
+# The ETA scales what is left by the pace of the steps done once they were expected to take this
+# long: a few seconds' step says nothing of the hours after it.
+PACE_AFTER_S = 600.0
+
+
+def left_s(expect_left: float, spent: float, expected: float) -> float:
+    """The time the steps left should take: their expected seconds, at the pace of those done
+    (`spent` of `expected` seconds) once PACE_AFTER_S of them are done."""
+    return expect_left * (spent / expected if expected >= PACE_AFTER_S else 1.0)
+
+
 def run(chosen: list[Step], out: Path, results: str = RESULTS) -> int:
     """Run the steps not yet done, one at a time, niced; then write the results page (where
     `results` is the shipped folder). 0, or 1 at the first step that fails."""
@@ -191,7 +202,7 @@ def run(chosen: list[Step], out: Path, results: str = RESULTS) -> int:
     (ROOT / results / "contact").mkdir(parents=True, exist_ok=True)
     spent = expected = 0.0
     for k, step in enumerate(todo, 1):
-        rest = sum(s.expect_s for s in todo[k - 1 :]) * (spent / expected if expected else 1.0)
+        rest = left_s(sum(s.expect_s for s in todo[k - 1 :]), spent, expected)
         print(f"[{k}/{len(todo)}] {step.name} (~{_minutes(step.expect_s)}; all left ~"
               f"{_minutes(rest)})", flush=True)  # fmt: skip
         started = out / f"{step.name}.started"

@@ -256,6 +256,17 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     assert other.returncode == 2 and "holds a regeneration of commit 0000000" in other.stderr
 
 
+def test_the_regenerations_eta_takes_the_pace_only_of_enough_steps(monkeypatch):
+    """A 1 s step expected at 5 s does not make 40 minutes left read 8; ten minutes of steps at
+    twice their expected time make it 80."""
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    from regenerate import left_s
+
+    assert left_s(2400.0, 1.0, 5.0) == 2400.0
+    assert left_s(2400.0, 1200.0, 600.0) == 4800.0
+    assert left_s(2400.0, 0.0, 0.0) == 2400.0
+
+
 def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch):
     """`ship_policy.record_skill` on a copy of the `paper` shipped until 2026-12 (trained with
     the `search` skill) as written before skills were recorded: by default it runs the skill it
