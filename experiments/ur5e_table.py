@@ -141,18 +141,18 @@ def main(argv=None) -> int:
         if not policy:
             raise SystemExit(f"--policy-for takes SHAPE=POLICY, got {item!r}")
         policies[shape] = policy
+    cell_policies = [policies.get(shape, args.policy) for shape, *_ in CELLS]
 
     def cell(k: int) -> list[dict]:
         shape, size, linear, _ = CELLS[k]
         out = args.out / cell_name(shape, size, linear)
-        policy = policies.get(shape, args.policy)
-        return run_cell(policy, shape, size, linear, args.trials, out, args.seed + k, changes)
+        return run_cell(cell_policies[k], shape, size, linear, args.trials, out, args.seed + k,
+                        changes)  # fmt: skip
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:  # each waits on its subprocess
         ran = list(pool.map(cell, range(len(CELLS))))
     rows = []
-    for (shape, size, linear, paper), runs in zip(CELLS, ran, strict=True):
-        policy = policies.get(shape, args.policy)
+    for (shape, size, linear, paper), policy, runs in zip(CELLS, cell_policies, ran, strict=True):
         ok = np.array([int(r["success"]) for r in runs], bool)
         times = np.array([float(r["time_s"]) for r in runs])[ok]
         stops = sum(int(r["protective_stop"]) for r in runs)
