@@ -17,6 +17,13 @@ import pytest  # noqa: E402
 
 
 @pytest.fixture
+def paper_38() -> pathlib.Path:
+    """The `paper` policy shipped until 2026-12 (the 38 alone, the names layout, trained with the
+    `search` skill), kept for the tests of what only it has and of what was measured with it."""
+    return _CACHE.parent / "docs/design/data/learning/paper_search_38"
+
+
+@pytest.fixture
 def x64():
     """Enable float64 in JAX for one test and restore the previous setting (it is global)."""
     import jax

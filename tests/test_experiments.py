@@ -267,7 +267,7 @@ def test_the_regenerations_eta_takes_the_pace_only_of_enough_steps(monkeypatch):
     assert left_s(2400.0, 0.0, 0.0) == 2400.0
 
 
-def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch):
+def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypatch, paper_38):
     """`ship_policy.record_skill` on a copy of the `paper` shipped until 2026-12 (trained with
     the `search` skill) as written before skills were recorded: by default it runs the skill it
     trained with (`search`, as it was); with --skill spiral its manifest and config.json are the
@@ -281,7 +281,7 @@ def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypat
     monkeypatch.syspath_prepend(str(ROOT / "experiments"))
     import ship_policy
 
-    shipped, copy = ROOT / "docs/design/data/learning/paper_search_38", tmp_path / "paper"
+    shipped, copy = paper_38, tmp_path / "paper"
     shutil.copytree(shipped, copy)
     manifest = json.loads((copy / "manifest.json").read_text())
     del manifest["skill"], manifest["config"]["skill_constants"]

@@ -1,13 +1,10 @@
 """learn/cli.py (`python train.py`): flags into a TrainConfig; bad input is one line."""
 
 import json
-from pathlib import Path
 
 import pytest
 
 from mjx_peg.learn.curves import read_table
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_full_time_limit_flag(tiny_args, tiny_config):
@@ -79,7 +76,7 @@ def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_
     assert bad.stderr == "train.py: error: --seeds must name distinct seeds, got '3,3'\n"
 
 
-def test_init_from_takes_its_runs_observation_layout():
+def test_init_from_takes_its_runs_observation_layout(paper_38):
     """--init-from a run trained on the names layout (the `paper` shipped until 2026-12, kept in
     docs/design/data) reads that layout; asking for another is one line; a new run reads the
     geometry layout unless told."""
@@ -91,7 +88,7 @@ def test_init_from_takes_its_runs_observation_layout():
     def resolve(*argv):
         return cli.resolve_config(cli.parser().parse_args(list(argv)))
 
-    names = str(ROOT / "docs/design/data/learning/paper_search_38")
+    names = str(paper_38)
     assert resolve("--preset", "transfer", "--init-from", names).observation == "names"
     assert resolve("--preset", "transfer", "--init-from", "paper").observation == "geometry"
     assert resolve().observation == "geometry"

@@ -77,7 +77,7 @@ def test_a_kept_checkpoint_exports_the_policy_the_run_had_then(tiny_run, tmp_pat
         export_checkpoint(out, 3, tmp_path / "at-3")  # never over another export or a run
 
 
-def test_init_from_a_shipped_policy_starts_at_its_actions():
+def test_init_from_a_shipped_policy_starts_at_its_actions(paper_38):
     """A run without checkpoints (a shipped policy of the 38 alone: the `paper` shipped until
     2026-12) starts from its exported mean path and observation statistics, counted as its
     trials, the skill's constants it did not learn at the prior; the exploration std and the
@@ -86,7 +86,7 @@ def test_init_from_a_shipped_policy_starts_at_its_actions():
     from mjx_peg.learn.ppo import init_state, make_networks
     from mjx_peg.learn.trainer import load_init
 
-    source = ROOT / "docs/design/data/learning/paper_search_38"
+    source = paper_38
     args = ["--preset", "transfer", "--learn-skill", "--init-from", str(source)]
     config = cli.resolve_config(cli.parser().parse_args(args))
     assert Path(config.init_from).resolve() == source

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,9 +26,6 @@ from mjx_peg.skill.search import skill_config
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 SHORT = TrialConfig(time_limit_s=3.0)
-
-# the `paper` shipped until 2026-12, which the measurements below were made with
-PAPER_38 = str(Path(__file__).resolve().parents[2] / "docs/design/data/learning/paper_search_38")
 
 
 def _specs(n=4, seed=3, linear_mm=2.0, angular_deg=2.0):
@@ -114,7 +110,7 @@ def test_simulated_arm_stops_a_settled_skill_as_the_engine_ends_it():
     assert abs(run.commands - result.steps[0]) <= config.settle_steps // 10
 
 
-def test_at_125_hz_the_filter_and_damping_keep_their_time_constants():
+def test_at_125_hz_the_filter_and_damping_keep_their_time_constants(paper_38):
     """Commands every 8 ms: the runtime's F/T filter and compliance damping take their 2 ms poles
     to the 4th power, so the touchdown is sensed as at 500 Hz. Before (the 2 ms poles once per
     command, four times too slow) all four of these circles protective-stopped at touchdown
@@ -122,7 +118,7 @@ def test_at_125_hz_the_filter_and_damping_keep_their_time_constants():
     The policy these were measured with: the `paper` shipped until 2026-12 (docs/design/data)."""
     task = TaskConfig.from_mm_deg(("circle",), 50.0, 4.0, 6.0)
     specs = sample_trials(task, 0, 4)
-    vectors = load_policy(PAPER_38).controller_vectors(specs)
+    vectors = load_policy(paper_38).controller_vectors(specs)
     for i in range(len(specs)):
         arm = SimArm(specs, i, command_steps=4)
         runtime = SkillRuntime(vectors[i], HoleEstimate.of_trial(specs, i),

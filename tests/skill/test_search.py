@@ -3,7 +3,6 @@ goal offsets, the alignment's integral, the paper's skill untouched, NumPy and J
 freed from the rim and pegs through tilted holes."""
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -532,7 +531,7 @@ def test_alignment_takes_pegs_through_tilted_holes():
 
 
 @pytest.mark.slow
-def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim():
+def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim(paper_38):
     """Eight of the 500 trials of experiments/contact.py (+-4 mm / +-6 deg, seed 1) that the
     `paper` policy shipped until 2026-12 (docs/design/data) leaves on the rim with the alignment
     alone (in 60 s; these are the eight the spiral inserted within 8 s there): the spiral inserts
@@ -545,8 +544,7 @@ def test_spiral_inserts_pegs_that_the_alignment_leaves_on_the_rim():
     task = TaskConfig(shapes=("circle", "square"), sizes=(0.05,), linear_error=0.004,
                       angular_error=math.radians(6.0))  # fmt: skip
     specs = sample_trials(task, 1, 500).take([116, 121, 128, 155, 161, 183, 195, 204])
-    old_paper = Path(__file__).resolve().parents[2] / "docs/design/data/learning/paper_search_38"
-    vectors = load_policy(old_paper).controller_vectors(specs)
+    vectors = load_policy(paper_38).controller_vectors(specs)
     results = {
         name: run_trials(specs, vectors, engine="mujoco", threads=1,
                          config=TrialConfig(time_limit_s=10.0, search=skill))
