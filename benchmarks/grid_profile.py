@@ -67,7 +67,7 @@ def physics_by_part(trials: int) -> dict[str, dict[str, float]]:
     specs = sample_trials(task, 0, trials)
     config = TrialConfig(time_limit_s=20.0, end_settled=False, search=skill_config("spiral"))
     snaps = record_states(specs, as_controller_params(baseline_params(), trials), config, 200)
-    parts = np.array([SHAPES[int(specs.shape_id[index])] for index, _ in snaps])
+    parts = np.array([SHAPES[int(specs.shape_id[index])] for index, _, _ in snaps])
     out = {}
     for name, change in VARIANTS.items():
         micros = bare_steps(specs, snaps, change=change)[0][:, 1]

@@ -45,7 +45,7 @@ def bare_steps(specs, snaps, steps: int = 10, change=None):
     if given, edits each trial's model (its options) before its first step."""
     models = {}
     rows = []
-    for index, state in snaps:
+    for index, state, _ in snaps:
         if index not in models:
             m = trial_model(specs, index)
             if change is not None:
@@ -67,7 +67,7 @@ def stage_times(snaps, models, steps: int = 10) -> dict[str, float]:
     total = None
     mujoco.set_mjcb_time(lambda: time.perf_counter() * 1e6)
     try:
-        for index, state in snaps:
+        for index, state, _ in snaps:
             m, d = models[index]
             mujoco.mj_setState(m, d, state, STATE)
             for timer in d.timer:

@@ -8,16 +8,19 @@ on the mujoco engine with 1 lane and with `--threads` lanes (default: every core
 this process and as worker processes, with each control-period pass of `--passes` (the NumPy
 pass, the compiled one: `run_on_cpu(compiled=...)`), every failure to the time limit, and reports
 physics steps/s and trials/s. In the same run, two references: the states the engine visited (a
-snapshot every `--replay-every` steps, contacts included) replayed with plain `mj_step` and the
-recorded torques held, no controller, on as many processes as lanes (the ceiling), and the same
-snapshots stepped by `mujoco.batch.Batch`, one step per call over `--slots` simulations at a time
-(the physics as the engine runs it: the engine's ratio to it is the share of the wall time that
-is physics; every engine run is paired with a `Batch.step` run just before it, and the row gives
-each pair's ratio and their median). Then the engine with early ending (TrialConfig.end_settled,
-the default), the fixed cost of a call, and a profile of one lane by stage for each pass (the
-engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx engine is timed on `--mjx-trials`
-trials (compile time reported apart). `--write` replaces the "## Trial engines" section of
-BENCHMARKS.md.
+snapshot every `--replay-every` steps, contacts included, and the torques the engine applied in
+each step after it) replayed with plain `mj_step` and those torques, no controller, on as many
+processes as lanes (the ceiling), and the same snapshots stepped by `mujoco.batch.Batch`, one step
+per call over 512 simulations at a time (the physics as the engine runs it, on the engine's own
+trajectory: each window ends on the engine's next snapshot bit for bit, counted in the notes; the
+engine's ratio to it is the share of the wall time that is physics; every engine run is paired
+with a `Batch.step` run just before it, and the row gives each pair's ratio and their median).
+Beside them, `Batch.step` with each snapshot's torques held through its window (the reference
+until 2026-12-07: its states leave the engine's). Then the engine with early ending
+(TrialConfig.end_settled, the default), the fixed cost of a call, and a profile of one lane by
+stage for each pass (the engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx engine is
+timed on `--mjx-trials` trials (compile time reported apart). `--write` replaces the "## Trial
+engines" section of BENCHMARKS.md.
 """
 
 from __future__ import annotations
@@ -74,70 +77,103 @@ def trial_model(specs, index):
 
 
 def record_states(specs, params, config, every):
-    """(spec index, state) snapshots of the engine's trials, every `every` steps."""
-    snaps = []
+    """(spec index, state, torques) snapshots of the engine's trials, every `every` steps: the
+    integration state before a step and the (every, 6) torques the engine applied in the `every`
+    steps from it (a window a trial does not live through is dropped)."""
+    snaps, windows = [], {}
 
     def observe(lane, rows, wrench):
+        # Each live row's ctrl holds the torques of its previous step.
+        blocks = [(k, ids) for k, (a, b, ids) in enumerate(lane.blocks) if b > a]
+        ctrl = np.concatenate([lane.scenes[k].ctrl[ids] for k, ids in blocks])
+        row_of = {int(s): i for i, s in enumerate(lane.spec_index)}
+        for index in list(windows):
+            state, torques = windows[index]
+            row = row_of.get(index)
+            if row is None:
+                del windows[index]  # the trial ended inside the window
+                continue
+            torques.append(ctrl[row].copy())
+            if len(torques) == every:
+                snaps.append((index, state, np.array(torques)))
+                del windows[index]
         for i in rows[lane.step[rows] % every == 0]:
             m, d, _ = lane.current[i]
             state = np.empty(mujoco.mj_stateSize(m, STATE))
             mujoco.mj_getState(m, d, state, STATE)
-            snaps.append((int(lane.spec_index[i]), state))
+            windows[int(lane.spec_index[i])] = (state, [])
 
     cpu_engine.run_on_cpu(specs, params, config, threads=1, observer=observe)
     return snaps
 
 
-def _replay_part(specs, snaps, every, barrier):
-    """Steps/s of bare mj_step from each snapshot for `every` steps (run in a worker process)."""
+def _replay_part(specs, snaps, every, barrier, held):
+    """Steps/s of bare mj_step from each snapshot for `every` steps, the engine's torques of
+    each step or (`held`) the snapshot's held (run in a worker process)."""
     models, jobs = {}, []
-    for index, state in snaps:
+    for index, state, torques in snaps:
         if index not in models:
             m = trial_model(specs, index)
             models[index] = (m, mujoco.MjData(m))
-        jobs.append((*models[index], state))
+        jobs.append((*models[index], state, torques))
     barrier.wait()
     start, cpu = time.perf_counter(), time.process_time()
-    for m, d, state in jobs:
+    for m, d, state, torques in jobs:
         mujoco.mj_setState(m, d, state, STATE)
-        for _ in range(every):
+        for k in range(every):
+            if not held:
+                d.ctrl[:] = torques[k]
             mujoco.mj_step(m, d)
     return len(jobs) * every, time.perf_counter() - start, time.process_time() - cpu
 
 
-def replay(specs, snaps, every, processes):
+def replay(specs, snaps, every, processes, held=False):
     """Bare mj_step from every snapshot on `processes` processes started together: steps/s, and
     CPU s per step."""
     ctx = multiprocessing.get_context("spawn")
     with ctx.Manager() as manager, ctx.Pool(processes) as pool:
         barrier = manager.Barrier(processes)
-        parts = [(specs, snaps[k::processes], every, barrier) for k in range(processes)]
+        parts = [(specs, snaps[k::processes], every, barrier, held) for k in range(processes)]
         done = pool.starmap(_replay_part, parts)
     steps = sum(s for s, _, _ in done)
     return steps / max(w for _, w, _ in done), sum(c for _, _, c in done) / steps
 
 
-def replay_batch(specs, snaps, every, nthread, nsim=512):
+def replay_batch(specs, snaps, every, nthread, nsim=512, held=False, check=None):
     """The snapshots stepped by one persistent mujoco.batch.Batch per scene, `nsim` at a time,
-    one step per call (as the engine steps), torques held; steps/s of the step calls."""
+    one step per call (as the engine steps) with the engine's torques of each step (or, `held`,
+    the snapshot's held); steps/s of the step calls. `check`: a list that gets, per snapshot
+    whose trial has a snapshot `every` steps later, whether the replay ends on it bit for bit."""
     by_scene = collections.defaultdict(list)
-    for index, state in snaps:
-        by_scene[sims.scene_key(specs, index)].append((index, state))
+    for snap in snaps:
+        by_scene[sims.scene_key(specs, snap[0])].append(snap)
+
+    def step_of(state):
+        return int(round(state[0] / TrialConfig().timestep))  # a state's first number: its time
+
+    later = {(index, step_of(state)): state for index, state, _ in snaps}
     steps, seconds = 0, 0.0
     for key, jobs in by_scene.items():
         batch = sims.Sims(key, min(nsim, len(jobs)), nthread)
         for start in range(0, len(jobs), batch.nsim):
             chunk = jobs[start : start + batch.nsim]
-            for sim, (index, state) in enumerate(chunk):
+            for sim, (index, state, _) in enumerate(chunk):
                 batch.load(sim, specs, index)  # the trial's model fields
                 batch.state[sim] = state
             ids = np.arange(len(chunk), dtype=np.int32)
+            torques = np.stack([t for _, _, t in chunk], axis=1)  # (every, sims, 6)
             batch.forward(ids)
-            begin = time.perf_counter()
-            for _ in range(every):
+            for k in range(every):
+                if not held:
+                    batch.ctrl[ids] = torques[k]
+                begin = time.perf_counter()
                 batch.batch.step(ids, stage=sims.STAGE_VEL)
-            seconds += time.perf_counter() - begin
+                seconds += time.perf_counter() - begin
             steps += len(chunk) * every
+            for sim, (index, state, _) in enumerate(chunk):
+                end = later.get((index, step_of(state) + every))
+                if check is not None and end is not None:
+                    check.append(bool(np.array_equal(batch.state[sim], end)))
     return steps / seconds
 
 
@@ -267,13 +303,22 @@ def main() -> None:
         ceiling, ceiling_cpu = max(
             replay(specs, snaps, args.replay_every, threads) for _ in range(3)
         )
-        in_batch = max(replay_batch(specs, snaps, args.replay_every, threads) for _ in range(2))
+        check = []
+        in_batch = max(replay_batch(specs, snaps, args.replay_every, threads, check=check)
+                       for _ in range(2))  # fmt: skip
+        held = max(replay_batch(specs, snaps, args.replay_every, threads, held=True)
+                   for _ in range(2))  # fmt: skip
         bare = f"CPU {1e6 * ceiling_cpu:.2f} µs/step"
         rows.append(_row("bare mj_step (ceiling)", cpu_name(), len(snaps), f"{threads} processes",
                          ceiling, "-", bare, replayed))  # fmt: skip
         rows.append(_row("bare `Batch.step`", cpu_name(), len(snaps), threads, in_batch, "-",
                          f"{100 * in_batch / ceiling:.0f} % of ceiling",
                          f"{replayed}, 512 simulations per batch, one step per call"))  # fmt: skip
+        rows.append(_row("bare `Batch.step`, each snapshot's torques held", cpu_name(),
+                         len(snaps), threads, held, "-", f"{100 * held / ceiling:.0f} % of ceiling",
+                         "states that leave the engine's within the window"))  # fmt: skip
+        notes.append(f"{threads} thread(s): the `Batch.step` replay ends on the engine's next "
+                     f"snapshot bit for bit in {sum(check)} of {len(check)} windows")  # fmt: skip
         lanes_as = [("threads", None)] + ([("processes", threads)] if threads > 1 else [])
         for name in passes:
             for how, processes in lanes_as:

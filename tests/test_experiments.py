@@ -140,6 +140,22 @@ def test_trials_benchmark_prints_its_table_and_the_profile(tmp_path):
     assert "100 control periods, 4.0 trials each on average" in out  # 0.2 s, 4 slots
     # the share of physics from the one run and the Batch.step run timed just before it
     assert re.search(r"\*\*(\d+) %\*\* of `Batch.step` \(pairs: \1 %\)", out)
+    # the reference steps the engine's own trajectory: each window replayed with the engine's
+    # torques ends on the engine's next snapshot, bit for bit
+    windows = re.search(r"next snapshot bit for bit in (\d+) of (\d+) windows", out)
+    assert windows and windows[1] == windows[2] and int(windows[2]) >= 8
+
+
+def test_the_layouts_benchmark_profiles_each_layout_and_the_batch_by_memory_touched():
+    out = run_script("benchmarks/layouts.py", "--trials", 4, "--layouts", "1x4,2x2/2",
+                     "--repeat", 1, "--sims", 4, "--touch-mb", "0,1")  # fmt: skip
+    for layout in ("1x4", "2x2/2"):
+        line = re.search(rf"run 1, {re.escape(layout)}: ([\d,]+) steps/s .*lane-µs per env-step: "
+                         r"(.*)", out)  # fmt: skip
+        assert line, out
+        assert int(line[1].replace(",", "")) > 0
+        assert "step " in line[2] and "advance " in line[2] and "idle and the rest " in line[2]
+    assert re.search(r"run 1, 4 simulations: 0 MB \d+\.\d+ 1 MB \d+\.\d+", out)
 
 
 def test_the_profile_hook_sees_every_stage_and_changes_no_result():
