@@ -120,6 +120,18 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--time-limit", type=cli.TIME_LIMIT_S, help="per training trial")
     p.add_argument(
+        "--linear-mm",
+        type=cli.LINEAR_MM,
+        help="+- localization x, y and grasp height error of the training trials (x S / 50 mm "
+        "for the family's parts); preset: the paper's 8",
+    )
+    p.add_argument(
+        "--angular-deg",
+        type=cli.ANGULAR_DEG,
+        help="+- localization yaw and grasp tilt error of the training trials; preset: the "
+        "paper's 12",
+    )
+    p.add_argument(
         "--init-from",
         type=cli.nonempty_path,
         help="the run (or shipped policy, e.g. paper) whose networks start this run: its last "
@@ -190,6 +202,8 @@ def resolve_config(args):
         "num_envs": args.num_envs,
         "trials": args.trials,
         "time_limit_s": args.time_limit,
+        "linear_mm": args.linear_mm,
+        "angular_deg": args.angular_deg,
         "init_from": None if args.init_from is None else str(args.init_from),
         "full_time_limit": args.full_time_limit or None,
         "action_map": args.action_map,

@@ -16,6 +16,24 @@ def test_full_time_limit_flag(tiny_args, tiny_config):
     assert tiny_config.trial().end_settled  # the default: settled failures end early
 
 
+def test_error_range_flags_set_the_training_trials_errors(tiny_args):
+    """--linear-mm and --angular-deg set the training trials' error ranges (the family's linear
+    errors scaled with each part); out of range is argparse's one line."""
+    from mjx_peg.learn import cli
+
+    config = cli.resolve_config(cli.parser().parse_args(
+        [*tiny_args, "--linear-mm", "10", "--angular-deg", "15"]))  # fmt: skip
+    task = config.task()
+    assert (config.linear_mm, config.angular_deg) == (10.0, 15.0)
+    assert task.linear_error == pytest.approx(0.010)
+    assert task.angular_error == pytest.approx(0.2617993877991494)
+    family = cli.resolve_config(cli.parser().parse_args(
+        ["--preset", "family", "--linear-mm", "10"]))  # fmt: skip
+    assert family.linear_mm == 10.0 and family.linear_per_size and family.angular_deg == 12.0
+    with pytest.raises(SystemExit):
+        cli.parser().parse_args([*tiny_args, "--angular-deg", "90"])
+
+
 def test_cli_bad_input_is_one_line(tmp_path, tiny_run, tiny_args, train_py):
     reference, _ = tiny_run
     broken = tmp_path / "broken"
