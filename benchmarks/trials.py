@@ -8,17 +8,17 @@ on the mujoco engine with 1 lane and with `--threads` lanes (default: every core
 this process and as worker processes, with each control-period pass of `--passes` (the NumPy
 pass, the compiled one: `run_on_cpu(compiled=...)`), every failure to the time limit, and reports
 physics steps/s and trials/s. In the same run, two references: the states the engine visited (a
-snapshot every `--replay-every` steps, contacts included, and the torques the engine applied in
-each step after it) replayed with plain `mj_step` and those torques, no controller, on as many
-processes as lanes (the ceiling), and the same snapshots stepped by `mujoco.batch.Batch`, one step
-per call over 512 simulations at a time (the physics as the engine runs it, on the engine's own
-trajectory: each window ends on the engine's next snapshot bit for bit, counted in the notes; the
-engine's ratio to it is the share of the wall time that is physics; every engine run is paired
-with a `Batch.step` run just before it, and the row gives each pair's ratio and their median).
-Beside them, `Batch.step` with each snapshot's torques held through its window (the reference
-until 2026-12-07: its states leave the engine's). Then the engine with early ending
-(TrialConfig.end_settled, the default), the fixed cost of a call, and a profile of one lane by
-stage for each pass (the engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx engine is
+snapshot every `--replay-every` steps, contacts included, and the torques the engine applied in each
+step after it) replayed with plain `mj_step` and those torques, no controller, on as many processes
+as lanes (the ceiling; its timing holds a NumPy write of `ctrl` per step), and the same snapshots
+stepped by `mujoco.batch.Batch`, one step per call over 512 simulations at a time (the physics as
+the engine runs it, on the engine's own trajectory: each window ends on the engine's next snapshot
+bit for bit, counted in the notes; the engine's ratio to it is the share of the wall time that is
+physics; every engine run is paired with a `Batch.step` run just before it, and the row gives each
+pair's ratio and their median). Beside them, `Batch.step` with each snapshot's torques held through
+its window (the reference until 2026-12-07: its states leave the engine's). Then the engine with
+early ending (TrialConfig.end_settled, the default), the fixed cost of a call, and a profile of one
+lane by stage for each pass (the engine's `profile` hook, `lanes.PROFILE_STAGES`). The mjx engine is
 timed on `--mjx-trials` trials (compile time reported apart). `--write` replaces the "## Trial
 engines" section of BENCHMARKS.md.
 """
