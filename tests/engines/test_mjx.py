@@ -22,16 +22,15 @@ def test_engines_agree(tmp_path, capsys):
     square, +-1.5 mm / +-2 deg; `paper` as shipped 2026-12-07), 7 insert on both engines at
     0.94-2.15 s, four of them after contact (peak sensed forces 55-104 N), and one circle is
     still searching at the 2.5 s limit on both (96 N); the two engines' times are within 0.03 s,
-    the tips 0.04 mm apart (median).
-    At larger errors more trials part between the engines (`experiments/engines_agree.py
-    --trials 48 ...` measures by how much: BENCHMARKS.md). The F/T pipeline itself is the same
-    function on both (tests/engines/test_period.py, tests/skill/test_sensor.py); here both
-    engines must report peak sensed forces of the same size and chatter of the same size (the
-    spiral's press chatters more than the paper's skill: the circle still searching 4.9 N on C
-    MuJoCo, 7.4 N on MJX): most of this test's time is the circle's 1,250 batch steps at ~10 per
-    second and the two compiles (BENCHMARKS.md, "Test suite"). The paper's skill runs the same
-    physics; its control period in JAX is checked against NumPy in
-    tests/skill/test_control_step.py and tests/engines/test_compiled.py.
+    the tips 0.04 mm apart (median). At larger errors more trials part between the engines
+    (`experiments/engines_agree.py --trials 48 ...` measures by how much: BENCHMARKS.md). The
+    F/T pipeline itself is the same function on both (tests/engines/test_period.py,
+    tests/skill/test_sensor.py); here both engines must report peak sensed forces of the same
+    size and chatter of the same size (the spiral's press chatters more than the paper's skill:
+    the circle still searching 4.9 N on C MuJoCo, 7.4 N on MJX). Most of this test's time is the
+    circle's 1,250 batch steps at ~10 per second and the two compiles (BENCHMARKS.md, "Test
+    suite"). The paper's skill runs the same physics; its control period in JAX is checked
+    against NumPy in tests/skill/test_control_step.py and tests/engines/test_compiled.py.
     """
     spec = importlib.util.spec_from_file_location(
         "engines_agree", ROOT / "experiments" / "engines_agree.py"
