@@ -23,16 +23,13 @@ Results: BENCHMARKS.md, "The engine's physics against a replay of its own trajec
 from __future__ import annotations
 
 import argparse
-import collections
-import threading
 import time
 
 import numpy as np
 from _report import cpu_name  # benchmarks/ is on sys.path when run
-from trials import record_states
+from trials import StageTimes, record_states, replay_batch
 
 from mjx_peg.engines import mujoco as cpu_engine
-from mjx_peg.engines import sims
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.errors import UsageError
 from mjx_peg.skill.baseline import baseline_params
@@ -40,19 +37,6 @@ from mjx_peg.skill.search import skill_config
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 WINDOW = 50  # steps replayed from each snapshot
-
-
-class LaneTimes:
-    """A profile hook for lanes in several threads: seconds and calls per stage, summed."""
-
-    def __init__(self):
-        self.lock = threading.Lock()
-        self.seconds, self.calls = collections.Counter(), collections.Counter()
-
-    def __call__(self, stage: str, seconds: float) -> None:
-        with self.lock:
-            self.seconds[stage] += seconds
-            self.calls[stage] += 1
 
 
 def parse_layout(text: str) -> dict:
@@ -68,7 +52,7 @@ def parse_layout(text: str) -> dict:
 
 def run_layout(specs, params, config, layout: dict) -> str:
     """One profiled run of the engine in `layout`: its line of the table."""
-    times = LaneTimes()
+    times = StageTimes()
     start = time.perf_counter()
     result = cpu_engine.run_on_cpu(specs, params, config, profile=times, **layout)
     wall = time.perf_counter() - start
@@ -85,27 +69,9 @@ def run_layout(specs, params, config, layout: dict) -> str:
 def batch_step_us(specs, snaps, nsim: int, touch_mb: float, chunks: int = 4) -> float:
     """µs per step of `Batch.step` (one C thread, `nsim` simulations, one step per call) on
     `chunks` x `nsim` snapshots with the engine's torques, `touch_mb` MB written between steps."""
-    key = sims.scene_key(specs, snaps[0][0])
-    batch = sims.Sims(key, nsim, 1)
     other = np.zeros(int(touch_mb * 2**20 / 8)) if touch_mb else None
-    steps, seconds = 0, 0.0
-    for start in range(0, chunks * nsim, nsim):
-        chunk = snaps[start : start + nsim]
-        for sim, (index, state, _) in enumerate(chunk):
-            batch.load(sim, specs, index)
-            batch.state[sim] = state
-        ids = np.arange(len(chunk), dtype=np.int32)
-        torques = np.stack([t for _, _, t in chunk], axis=1)
-        batch.forward(ids)
-        for k in range(WINDOW):
-            batch.ctrl[ids] = torques[k]
-            if other is not None:
-                np.add(other, 1.0, out=other)
-            begin = time.perf_counter()
-            batch.batch.step(ids, stage=sims.STAGE_VEL)
-            seconds += time.perf_counter() - begin
-        steps += len(chunk) * WINDOW
-    return 1e6 * seconds / steps
+    touch = None if other is None else lambda: np.add(other, 1.0, out=other)
+    return 1e6 / replay_batch(specs, snaps[: chunks * nsim], WINDOW, 1, nsim=nsim, between=touch)
 
 
 def main() -> None:

@@ -30,6 +30,7 @@ import collections
 import functools
 import multiprocessing
 import os
+import threading
 import time
 
 import mujoco
@@ -139,11 +140,12 @@ def replay(specs, snaps, every, processes, held=False):
     return steps / max(w for _, w, _ in done), sum(c for _, _, c in done) / steps
 
 
-def replay_batch(specs, snaps, every, nthread, nsim=512, held=False, check=None):
+def replay_batch(specs, snaps, every, nthread, nsim=512, held=False, check=None, between=None):
     """The snapshots stepped by one persistent mujoco.batch.Batch per scene, `nsim` at a time,
     one step per call (as the engine steps) with the engine's torques of each step (or, `held`,
     the snapshot's held); steps/s of the step calls. `check`: a list that gets, per snapshot
-    whose trial has a snapshot `every` steps later, whether the replay ends on it bit for bit."""
+    whose trial has a snapshot `every` steps later, whether the replay ends on it bit for bit.
+    `between()`, if given, runs before each step, outside the timing."""
     by_scene = collections.defaultdict(list)
     for snap in snaps:
         by_scene[sims.scene_key(specs, snap[0])].append(snap)
@@ -151,7 +153,7 @@ def replay_batch(specs, snaps, every, nthread, nsim=512, held=False, check=None)
     def step_of(state):
         return int(round(state[0] / TrialConfig().timestep))  # a state's first number: its time
 
-    later = {(index, step_of(state)): state for index, state, _ in snaps}
+    later = {} if check is None else {(i, step_of(state)): state for i, state, _ in snaps}
     steps, seconds = 0, 0.0
     for key, jobs in by_scene.items():
         batch = sims.Sims(key, min(nsim, len(jobs)), nthread)
@@ -166,13 +168,15 @@ def replay_batch(specs, snaps, every, nthread, nsim=512, held=False, check=None)
             for k in range(every):
                 if not held:
                     batch.ctrl[ids] = torques[k]
+                if between is not None:
+                    between()
                 begin = time.perf_counter()
                 batch.batch.step(ids, stage=sims.STAGE_VEL)
                 seconds += time.perf_counter() - begin
             steps += len(chunk) * every
             for sim, (index, state, _) in enumerate(chunk):
                 end = later.get((index, step_of(state) + every))
-                if check is not None and end is not None:
+                if end is not None:
                     check.append(bool(np.array_equal(batch.state[sim], end)))
     return steps / seconds
 
@@ -184,14 +188,17 @@ def paired_run(specs, snaps, every, threads, run):
 
 
 class StageTimes:
-    """A profile hook for the CPU engine: seconds and calls per stage."""
+    """A profile hook for the CPU engine: seconds and calls per stage, summed over its lanes
+    (lanes in several threads call it at once)."""
 
     def __init__(self):
         self.seconds, self.calls = collections.Counter(), collections.Counter()
+        self._lock = threading.Lock()
 
     def __call__(self, stage: str, seconds: float) -> None:
-        self.seconds[stage] += seconds
-        self.calls[stage] += 1
+        with self._lock:
+            self.seconds[stage] += seconds
+            self.calls[stage] += 1
 
 
 def profile_parts(specs, params, config, compiled, unprofiled_wall=None, slots=None):

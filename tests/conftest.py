@@ -5,7 +5,8 @@ import pathlib
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
-_CACHE = pathlib.Path(__file__).resolve().parent.parent / ".jax_cache"
+_ROOT = pathlib.Path(__file__).resolve().parent.parent
+_CACHE = _ROOT / ".jax_cache"
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
 # The CPU engine's NumPy pass, the reference, unless a test names the compiled one: a compile per
@@ -20,7 +21,7 @@ import pytest  # noqa: E402
 def paper_38() -> pathlib.Path:
     """The `paper` policy shipped until 2026-12 (the 38 alone, the names layout, trained with the
     `search` skill), kept for the tests of what only it has and of what was measured with it."""
-    return _CACHE.parent / "docs/design/data/learning/paper_search_38"
+    return _ROOT / "docs/design/data/learning/paper_search_38"
 
 
 @pytest.fixture
