@@ -579,30 +579,37 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
             "--checkpoint-every", "3600", "--no-progress", "--processes", "0"]  # fmt: skip
     out = tmp_path / "run"
     env = dict(os.environ)  # the tests' compilation cache: each of the three runs compiles once
-    # SIGINT back to its default in the child: a suite run as a background job ignores it
-    default = functools.partial(signal.signal, signal.SIGINT, signal.SIG_DFL)
-    run = subprocess.Popen([sys.executable, *argv, "--out", str(out)], cwd=ROOT, env=env,
-                           stderr=subprocess.PIPE, text=True, preexec_fn=default)  # fmt: skip
-    csv = out / "trials.csv"
-    deadline = time.monotonic() + 600
-    while not (csv.is_file() and len(csv.read_text().splitlines()) > 8):
-        assert run.poll() is None and time.monotonic() < deadline
-        time.sleep(0.1)
-    time.sleep(1.0)  # into the second iteration's trials
-    sent = time.monotonic()
-    run.send_signal(signal.SIGINT)
-    assert run.wait(timeout=60) == 130
-    took = time.monotonic() - sent
-    assert took < 3.0, took
-    assert "interrupted; rerun the same command to resume" in run.stderr.read()
-    assert len(csv.read_text().splitlines()) == 9  # the first iteration, kept
-    # The resumed run and an uninterrupted one, side by side (one core each).
-    runs = [subprocess.Popen([sys.executable, *argv, "--out", str(target)], cwd=ROOT, env=env,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-            for target in (out, tmp_path / "uninterrupted")]  # fmt: skip
-    for done in runs:
-        _, err = done.communicate(timeout=900)
-        assert done.returncode == 0, err[-2000:]
+    # The uninterrupted run beside the interrupted one and its resumption (one core each)
+    whole = subprocess.Popen([sys.executable, *argv, "--out", str(tmp_path / "uninterrupted")],
+                             cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             text=True)  # fmt: skip
+    try:
+        # SIGINT back to its default in the child: a suite run as a background job ignores it
+        default = functools.partial(signal.signal, signal.SIGINT, signal.SIG_DFL)
+        run = subprocess.Popen([sys.executable, *argv, "--out", str(out)], cwd=ROOT, env=env,
+                               stderr=subprocess.PIPE, text=True, preexec_fn=default)  # fmt: skip
+        csv = out / "trials.csv"
+        deadline = time.monotonic() + 600
+        while not (csv.is_file() and len(csv.read_text().splitlines()) > 8):
+            assert run.poll() is None and time.monotonic() < deadline
+            time.sleep(0.1)
+        time.sleep(1.0)  # into the second iteration's trials
+        sent = time.monotonic()
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=60) == 130
+        took = time.monotonic() - sent
+        assert took < 3.0, took
+        assert "interrupted; rerun the same command to resume" in run.stderr.read()
+        assert len(csv.read_text().splitlines()) == 9  # the first iteration, kept
+        resumed = subprocess.Popen([sys.executable, *argv, "--out", str(out)], cwd=ROOT,
+                                   env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   text=True)  # fmt: skip
+        for done in (resumed, whole):
+            _, err = done.communicate(timeout=900)
+            assert done.returncode == 0, err[-2000:]
+    finally:  # a failed check leaves no training running
+        if whole.poll() is None:
+            whole.kill()
     assert csv.read_bytes() == (tmp_path / "uninterrupted" / "trials.csv").read_bytes()
 
 

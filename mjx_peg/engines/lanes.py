@@ -191,7 +191,8 @@ class Lane:
                          d.site_xmat[tcp].reshape(3, 3).copy())  # fmt: skip
         p = self.params
         search = None if p.search is None else tree_map(lambda v: v[index], p.search)
-        search = for_part(cfg.search, search, cfg.movement.duration, np.asarray(s.size[index]))
+        search = for_part(cfg.search, search, cfg.movement.duration, np.asarray(s.size[index]),
+                          np.asarray(s.angular_range[index]))  # fmt: skip
         skill = make_skill(
             ControllerParams(p.k_t[index], p.k_theta[index], p.compliance[index]),
             goal_pos[0],

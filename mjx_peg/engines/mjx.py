@@ -33,7 +33,7 @@ from mjx_peg.engines.trial import (
 from mjx_peg.skill import sensor
 from mjx_peg.skill.control_step import Basis, make_skill, start_state
 from mjx_peg.skill.params import ControllerParams
-from mjx_peg.skill.search import SearchValues, for_part
+from mjx_peg.skill.search import LEARNED, SearchValues, for_part
 from mjx_peg.world import constants, scene
 from mjx_peg.world.task import TrialSpec, board_pose, goal_pose, hole_frame
 
@@ -85,13 +85,14 @@ def _slot_inputs(specs: TrialSpec, params: ControllerParams, config: TrialConfig
         hole_origin=hole_origin,
         hole_axis=hole_axis,
         size=np.asarray(specs.size, dtype=np.float64),
+        angular_range=np.asarray(specs.angular_range, dtype=np.float64),
         k_t=params.k_t,
         k_theta=params.k_theta,
         compliance=params.compliance,
         **(
             {}
             if params.search is None
-            else {f"search_{k}": v for k, v in params.search._asdict().items()}
+            else {f"search_{k}": v for k, v in params.search._asdict().items() if v is not None}
         ),  # fmt: skip
     )
 
@@ -162,8 +163,9 @@ class _Program:
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
         search = None
         if "search_movement_s" in inp:
-            search = SearchValues(*(inp[f"search_{k}"] for k in SearchValues._fields))
-        search = for_part(cfg.search, search, cfg.movement.duration, inp["size"])
+            search = SearchValues(**{k: inp[f"search_{k}"] for k in LEARNED})
+        search = for_part(cfg.search, search, cfg.movement.duration, inp["size"],
+                          inp["angular_range"])  # fmt: skip
         skill = make_skill(params, inp["goal_pos"], inp["goal_rot"], y0, cfg.dmp.tau, search)
         sp = sensor.SensorParams(*(inp[f"sensor_{name}"] for name in sensor.SensorParams._fields))
         consts = period.make_consts(skill, sp, meas.ft, inp["hole_origin"], inp["hole_axis"],

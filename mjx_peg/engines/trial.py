@@ -393,6 +393,8 @@ def as_controller_params(params, batch: int) -> ControllerParams:
     if params.search is not None:
         values = {}
         for name, value in params.search._asdict().items():
+            if value is None:  # a field the engine fills per trial (`search.for_part`)
+                continue
             value = np.broadcast_to(np.asarray(value, dtype=np.float64), (batch,)).copy()
             low, high, _ = SEARCH_RANGES[name]
             if not np.all((value >= low) & (value <= high)):

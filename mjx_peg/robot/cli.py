@@ -55,7 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=cli.SIZE_MM, default=50.0, help="size S (default 50)")
     p.add_argument("--hole-scale", default="paper", help=HOLE_SCALE_HELP)
     p.add_argument("--linear-mm", type=cli.LINEAR_MM, default=2.0, help="± linear error range")
-    p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0, help="± angular error range")
+    p.add_argument("--angular-deg", type=cli.ANGULAR_DEG, default=3.0,
+                   help="± angular error range (with --robot-ip: the uncertainty of --hole's yaw, "
+                   "which a skill with yaw_scale=uncertainty sweeps)")  # fmt: skip
     p.add_argument("--trials", type=cli.TRIALS, default=10, help="default 10")
     p.add_argument("--seed", type=cli.SEED, default=0, help="default 0")
     cli.add_grasp_model_option(p, GRASP_MODELS, "board")

@@ -51,8 +51,9 @@ class SafetyStop(RuntimeError):
 @dataclasses.dataclass(frozen=True)
 class HoleEstimate:
     """Where the skill believes the hole is and what part it takes: centre x, y (m), yaw (rad),
-    shape, size S (m) and the hole's clearance, hole size / peg size (None: the shape's paper
-    fit, constants.HOLE_SCALE)."""
+    shape, size S (m), the hole's clearance, hole size / peg size (None: the shape's paper
+    fit, constants.HOLE_SCALE), and the yaw's declared uncertainty (+- rad; 0: none declared),
+    which a skill with yaw_scale "uncertainty" sweeps (`search.for_part`)."""
 
     x: float
     y: float
@@ -60,19 +61,22 @@ class HoleEstimate:
     shape: str
     size: float
     hole_scale: float | None = None
+    yaw_uncertainty: float = 0.0
 
     def __post_init__(self):
         if self.shape not in constants.SHAPES:
             raise UsageError(f"hole shape must be one of {constants.SHAPES}, got {self.shape!r}")
         if self.hole_scale is None:
             object.__setattr__(self, "hole_scale", constants.HOLE_SCALE[self.shape])
-        for name in ("x", "y", "yaw", "size", "hole_scale"):
+        for name in ("x", "y", "yaw", "size", "hole_scale", "yaw_uncertainty"):
             if not math.isfinite(getattr(self, name)):
                 raise UsageError(
                     f"hole {name} must be a finite number, got {getattr(self, name)!r}"
                 )
         if self.size <= 0:
             raise UsageError(f"hole size must be positive (m), got {self.size!r}")
+        if self.yaw_uncertainty < 0:
+            raise UsageError(f"hole yaw uncertainty must be >= 0 rad, got {self.yaw_uncertainty!r}")
         lo, hi = constants.HOLE_SCALE_RANGE
         if not lo <= self.hole_scale <= hi:
             raise UsageError(
@@ -82,11 +86,12 @@ class HoleEstimate:
 
     @classmethod
     def of_trial(cls, specs, index: int) -> HoleEstimate:
-        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw and part)."""
+        """The estimate of trial `index` of a `TrialSpec` (its hole_est_pos/yaw, part, and the
+        range its yaw error was drawn from as the declared uncertainty)."""
         x, y = (float(v) for v in specs.hole_est_pos[index])
         shape = constants.SHAPES[int(specs.shape_id[index])]
         return cls(x, y, float(specs.hole_est_yaw[index]), shape, float(specs.size[index]),
-                   float(specs.hole_scale[index]))  # fmt: skip
+                   float(specs.hole_scale[index]), float(specs.angular_range[index]))  # fmt: skip
 
     def observation(self, layout: str = "names") -> np.ndarray:
         """(1, n) policy observation of this estimate in `layout` (observation.LAYOUTS)."""
@@ -139,8 +144,9 @@ class SkillRuntime:
         cfg = self.config
         tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
+        hole = self.hole
         search = for_part(cfg.search, self.params.search, cfg.movement.duration,
-                          np.array([self.hole.size]))  # fmt: skip
+                          np.array([hole.size]), np.array([hole.yaw_uncertainty]))  # fmt: skip
         skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau, search)
         # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
         # the software filter only, its pole for the command's period.

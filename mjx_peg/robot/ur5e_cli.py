@@ -262,7 +262,8 @@ def run(args, prog: str) -> int:
         )
     x, y, yaw = parse_hole(args.hole)
     scale = hole_scale_of(args.shape, parse_hole_scale(args.hole_scale))
-    hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0, scale)
+    hole = HoleEstimate(x, y, yaw, args.shape, args.size / 1000.0, scale,
+                        math.radians(args.angular_deg))  # fmt: skip
     given, args.policy = args.policy, resolve_policy(args.policy)
     policy = args.policy
     if policy != "baseline":

@@ -203,7 +203,8 @@ def skill_torque(config: ControlConfig, skill: SkillConsts, basis: Basis, meas: 
     tcp_vel = matvec(meas.jac, meas.qvel)
     y, yd = task_state(skill, meas.tcp_pos, meas.tcp_rot, tcp_vel)
     t = meas.t
-    if skill.search is not None:  # the fitted movement played at the trial's duration
+    if skill.search is not None and skill.search.movement_s is not None:
+        # the fitted movement played at the trial's duration
         t = t * (config.movement_s / skill.search.movement_s)
     s = dmp.phase(t, config.tau, config.alpha_s)
     f = dmp.forcing(s, basis.weights, basis.centers, basis.widths)

@@ -220,9 +220,9 @@ def search_from_vector(vector) -> SearchValues:
 
 
 def vector_from_search(values: SearchValues):
-    """(..., 9) vector of SearchValues in `search.LEARNED` order."""
-    xp = namespace_of(*values)
-    return xp.stack(list(values), axis=-1)
+    """(..., 9) vector of SearchValues in `search.LEARNED` order (the learned fields alone)."""
+    learned = [getattr(values, name) for name in LEARNED]
+    return namespace_of(*learned).stack(learned, axis=-1)
 
 
 def controller_from_action(action, ranges: ParamRanges = DEFAULT_RANGES) -> ControllerParams:

@@ -135,6 +135,11 @@ class SkillConfig:
     # (tuned at the paper's 50 mm); "size", times S / 50 mm, the part's characteristic size over
     # the one they were set at
     part_scale: str = "absolute"
+    # How the yaw sweep's amplitude follows the hole's estimate (`for_part`): "absolute", as set
+    # (tuned at the paper's +-6 deg); "uncertainty", times max(1, r / 6 deg), r the estimate's
+    # declared yaw uncertainty (+- rad), so that the sweep reaches a yaw error the alignment's
+    # bound cannot
+    yaw_scale: str = "absolute"
 
     def __post_init__(self):
         for name in ("press_accel", "centre_gain", "align_rate", "align_max", "align_max_yaw",
@@ -187,6 +192,11 @@ class SkillConfig:
                 f"SkillConfig.part_scale must be one of {', '.join(PART_SCALES)}, got "
                 f"{self.part_scale!r}"
             )
+        if self.yaw_scale not in YAW_SCALES:
+            raise UsageError(
+                f"SkillConfig.yaw_scale must be one of {', '.join(YAW_SCALES)}, got "
+                f"{self.yaw_scale!r}"
+            )
         if not (0 <= self.force_on < self.force_full < math.inf):
             raise UsageError(
                 "SkillConfig needs 0 <= force_on < force_full, got "
@@ -214,7 +224,11 @@ class SkillConfig:
 PART_SCALES = ("absolute", "size")
 REFERENCE_SIZE = 0.05  # m: the paper's training size
 SIZE_SCALED = ("spiral_pitch", "spiral_radius", "spiral_speed")
-TEXT_CONSTANTS = ("part_scale",)  # SkillConfig's constants that are names, not numbers
+# How the yaw sweep follows the estimate's yaw uncertainty (SkillConfig.yaw_scale), and the
+# uncertainty its amplitude was set at: the paper's +-6 deg
+YAW_SCALES = ("absolute", "uncertainty")
+REFERENCE_YAW_RANGE = math.radians(6.0)
+TEXT_CONSTANTS = ("part_scale", "yaw_scale")  # SkillConfig's constants that are names
 
 # The constants a policy may learn per trial (`SearchValues`), in SkillConfig's units.
 LEARNED = ("spiral_pitch", "spiral_radius", "spiral_speed", "spiral_axial", "align_rate",
@@ -223,7 +237,8 @@ LEARNED = ("spiral_pitch", "spiral_radius", "spiral_speed", "spiral_axial", "ali
 
 class SearchValues(NamedTuple):
     """The skill's learnable constants of each trial, (...,) arrays (SkillConfig's fields of
-    the same names and units; movement_s is the movement's duration T itself, in s)."""
+    the same names and units; movement_s is the movement's duration T itself, in s); a field
+    None: the config's (`for_part` fills spiral_yaw alone where only the sweep is the trial's)."""
 
     spiral_pitch: object  # m: p
     spiral_radius: object  # m: R
@@ -234,6 +249,9 @@ class SearchValues(NamedTuple):
     insert_depth: object  # m: d_i
     insert_axial: object  # kappa_i: the axial compliance deep in the hole, times C_zz
     movement_s: object  # s: T
+    # rad: psi_s, the yaw sweep's amplitude of the trial (`for_part`, yaw_scale "uncertainty");
+    # None: the config's. Not learned: a policy's vector holds the fields above
+    spiral_yaw: object = None
 
 
 def search_values(config: SkillConfig, movement_s: float, like) -> SearchValues:
@@ -245,23 +263,37 @@ def search_values(config: SkillConfig, movement_s: float, like) -> SearchValues:
     return SearchValues(**{k: xp.full(like.shape, v, dtype=like.dtype) for k, v in fields.items()})
 
 
-def for_part(config: SkillConfig, values: SearchValues | None, movement_s: float, size):
-    """The trial's search constants for its part of size S (...,) m: under part_scale "size"
-    the spiral's pitch, radius and speed of `values` (None: the config's) times S / 50 mm, the
-    rest as they are; under "absolute" `values` as given (None stays None: the config's)."""
-    if config.part_scale == "absolute":
+def for_part(config: SkillConfig, values: SearchValues | None, movement_s: float, size,
+             yaw_range=None):  # fmt: skip
+    """The trial's search constants for its part of size S (...,) m and its estimate's yaw
+    uncertainty r (...,) (+- rad; None: none declared): under part_scale "size" the spiral's
+    pitch, radius and speed of `values` (None: the config's) times S / 50 mm; under yaw_scale
+    "uncertainty" the yaw sweep's amplitude psi_s = spiral_yaw max(1, r / 6 deg); the rest as
+    they are. Both "absolute" (or no r): `values` as given (None stays None: the config's)."""
+    sized = config.part_scale != "absolute"
+    swept = config.yaw_scale != "absolute" and config.spiral_yaw > 0 and yaw_range is not None
+    if not (sized or swept):
         return values
-    if values is None:
-        values = search_values(config, movement_s, size)
-    factor = size / REFERENCE_SIZE
-    return values._replace(**{name: getattr(values, name) * factor for name in SIZE_SCALED})
+    if sized:
+        if values is None:
+            values = search_values(config, movement_s, size)
+        factor = size / REFERENCE_SIZE
+        values = values._replace(**{n: getattr(values, n) * factor for n in SIZE_SCALED})
+    if swept:  # the learnable fields left None stay the config's floats, as without the sweep
+        xp = namespace_of(size)
+        widen = xp.maximum(1.0, xp.asarray(yaw_range, dtype=size.dtype) / REFERENCE_YAW_RANGE)
+        if values is None:
+            values = SearchValues(*(None,) * len(LEARNED))
+        values = values._replace(spiral_yaw=config.spiral_yaw * widen)
+    return values
 
 
 def _value(config: SkillConfig, values, name: str, column: bool = True):
-    """A learnable constant: the config's float, or the trial's (..., 1) (column) or (...,)."""
-    if values is None:
+    """A learnable constant: the config's float (no values, or this field None), or the
+    trial's (..., 1) (column) or (...,)."""
+    value = None if values is None else getattr(values, name)
+    if value is None:
         return getattr(config, name)
-    value = getattr(values, name)
     return value[..., None] if column else value
 
 
@@ -445,7 +477,10 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
         turn = turn + xp.concat([lean[..., 1:], -lean[..., :1], xp.zeros_like(sigma)], axis=-1)
     if spiralling and config.spiral_yaw > 0:  # a triangle wave in [-psi_s, psi_s]
         phase = xp.remainder(tau / config.spiral_yaw_period + 0.25, 1.0)
-        sweep = config.spiral_yaw * sigma * (1.0 - 4.0 * xp.abs(phase[..., None] - 0.5))
+        psi = config.spiral_yaw
+        if values is not None and values.spiral_yaw is not None:  # the trial's (`for_part`)
+            psi = values.spiral_yaw[..., None]
+        sweep = psi * sigma * (1.0 - 4.0 * xp.abs(phase[..., None] - 0.5))
         turn = turn + xp.concat([xp.zeros_like(lateral), sweep], axis=-1)
     return xp.concat([lateral, axial, turn], axis=-1)
 

@@ -147,3 +147,30 @@ def test_a_compiled_lane_leaves_jax_in_float32_and_serves_observers():
     steps = [s for s, _ in seen[True]]
     assert steps == [s for s, _ in seen[False]] == list(range(len(steps)))
     np.testing.assert_allclose(seen[True][-1][1], seen[False][-1][1], atol=1e-6)
+
+
+def test_a_sweep_that_follows_the_declared_yaw_uncertainty_runs_alike_on_both_passes():
+    """yaw_scale "uncertainty" (each trial's sweep amplitude from its spec's yaw range): on
+    squares at +-15 deg and +-6 deg in one batch the compiled pass gives the NumPy pass's outcomes
+    and steps, tips within 1e-9 m; against the skill as set the +-15 deg trials end elsewhere,
+    the +-6 deg ones (the amplitude exactly as set) bit for bit where they were."""
+    from mjx_peg.world.task import TrialSpec
+
+    wide, paper = (sample_trials(TaskConfig(shapes=("square",), linear_error=lin,
+                                            angular_error=np.deg2rad(ang)), 7, 4)
+                   for lin, ang in ((0.01, 15.0), (0.004, 6.0)))  # fmt: skip
+    specs = TrialSpec(**{k: np.concatenate([v, paper.to_arrays()[k]])
+                         for k, v in wide.to_arrays().items()})  # fmt: skip
+    params = _params(8)
+    config = TrialConfig(time_limit_s=3.0, search=SKILLS["spiral"].replace(yaw_scale="uncertainty"))
+    numpy_pass = cpu_engine.run_on_cpu(specs, params, config, threads=1, compiled=False)
+    compiled_pass = cpu_engine.run_on_cpu(specs, params, config, threads=1, compiled=True)
+    np.testing.assert_array_equal(compiled_pass.success, numpy_pass.success)
+    np.testing.assert_array_equal(compiled_pass.steps, numpy_pass.steps)
+    np.testing.assert_allclose(compiled_pass.final_tip_pos, numpy_pass.final_tip_pos, atol=1e-9)
+    narrow = cpu_engine.run_on_cpu(specs, params, config.replace(search=SKILLS["spiral"]),
+                                   threads=1, compiled=False)  # fmt: skip
+    moved = np.abs(narrow.final_tip_pos - numpy_pass.final_tip_pos).max(axis=1)
+    assert moved[:4].max() > 1e-3
+    np.testing.assert_array_equal(moved[4:], 0.0)
+    np.testing.assert_array_equal(narrow.time_s[4:], numpy_pass.time_s[4:])

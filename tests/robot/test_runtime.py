@@ -287,6 +287,30 @@ def test_a_policys_own_search_constants_reach_the_arm():
     assert engine.steps[0] == runs["slow"].commands
 
 
+def test_the_declared_yaw_uncertainty_widens_the_sweep_on_the_arm_as_in_the_engine():
+    """A skill whose yaw sweep follows the estimate's declared uncertainty (yaw_scale
+    "uncertainty"): the hole estimate of a trial declares the range its yaw error was drawn from,
+    and the arm's run of a +-15 deg trial ends as the engine's, each command's tcp within 1e-9 m;
+    the sweep then turns the peg otherwise than the skill as set."""
+    specs = _specs(n=1, seed=7, linear_mm=10.0, angular_deg=15.0)  # a square
+    hole = HoleEstimate.of_trial(specs, 0)
+    assert hole.yaw_uncertainty == pytest.approx(np.radians(15.0))
+    vec = baseline_params()
+    runs = {}
+    for scale in ("absolute", "uncertainty"):
+        config = SHORT.replace(search=skill_config("spiral").replace(yaw_scale=scale))
+        arm = SimArm(specs, 0)
+        runs[scale] = run_skill(arm, SkillRuntime(vec, hole, config), done=arm.inserted)
+        engine = cpu_engine.run_on_cpu(specs, as_controller_params(vec, 1), config, threads=1)
+        assert runs[scale].commands == engine.steps[0]
+        np.testing.assert_allclose(arm.tip_pos(), engine.final_tip_pos[0], atol=1e-9, rtol=0)
+    wide, narrow = runs["uncertainty"].log["torque"], runs["absolute"].log["torque"]
+    n = min(len(wide), len(narrow))
+    assert not np.array_equal(wide[:n], narrow[:n])
+    with pytest.raises(Exception, match="yaw uncertainty"):
+        HoleEstimate(0.4, 0.0, 0.0, "square", 0.05, yaw_uncertainty=-0.1)
+
+
 def test_a_hole_estimate_gives_either_observation_of_its_part():
     """The hole's clearance defaults to the shape's paper fit; the estimate observes itself in
     the names layout (the shipped policies') or the geometry one, as the policy asks."""

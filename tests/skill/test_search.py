@@ -611,6 +611,50 @@ def test_the_spirals_lengths_follow_the_parts_size_where_told():
         absolute.replace(part_scale="shape")
 
 
+def test_the_yaw_sweep_follows_the_declared_yaw_uncertainty_where_told():
+    """yaw_scale "uncertainty": psi_s = spiral_yaw max(1, r / 6 deg) per trial, r the estimate's
+    declared yaw uncertainty; up to 6 deg exactly spiral_yaw; only the sweep is the trial's (the
+    learnable fields stay None: the config's); no r or "absolute": the config's, as set."""
+    absolute = search.SKILLS["spiral"]
+    swept = absolute.replace(yaw_scale="uncertainty")
+    size = np.full(4, 0.05)
+    r = np.radians([2.0, 6.0, 12.0, 15.0])
+    assert search.for_part(absolute, None, 2.0, size, r) is None
+    assert search.for_part(swept, None, 2.0, size) is None  # nothing declared
+    values = search.for_part(swept, None, 2.0, size, r)
+    np.testing.assert_allclose(values.spiral_yaw, [0.1, 0.1, 0.2, 0.25], rtol=1e-12)
+    assert values.spiral_yaw[0] == values.spiral_yaw[1] == absolute.spiral_yaw  # exactly
+    assert all(getattr(values, name) is None for name in search.LEARNED)
+    both = search.for_part(swept.replace(part_scale="size"), None, 2.0, size / 2, r)
+    np.testing.assert_allclose(both.spiral_pitch, absolute.spiral_pitch / 2, rtol=1e-15)
+    np.testing.assert_array_equal(both.spiral_yaw, values.spiral_yaw)
+    # the goal's yaw at the sweep's peak (tau = T_psi / 4) is each trial's psi_s
+    n = len(r)
+    wrench = _pressed_face(np.zeros((n, 2)), np.full(n, 30.0))
+    dy = np.zeros((n, 6))
+    spiral = np.stack([np.full(n, 0.25), np.full(n, 0.08), np.ones(n)], axis=-1)
+    peak = search.searched_offset(swept, dy, wrench, None, spiral, values=values)
+    flat = search.searched_offset(swept.replace(spiral_yaw=0.0), dy, wrench, None, spiral)
+    np.testing.assert_allclose(peak[:, 5] - flat[:, 5], values.spiral_yaw, rtol=1e-12)
+    np.testing.assert_array_equal(peak[:, :5], flat[:, :5])
+    with pytest.raises(UsageError, match="yaw_scale"):
+        absolute.replace(yaw_scale="size")
+
+
+def test_the_yaw_sweep_of_each_trial_is_computed_alike_in_jax(x64):
+    """`for_part` on JAX arrays inside jit (the MJX engine's slot, the compiled pass) gives the
+    NumPy amplitudes."""
+    import jax
+    import jax.numpy as jnp
+
+    swept = search.SKILLS["spiral"].replace(yaw_scale="uncertainty")
+    r = np.radians([3.0, 15.0])
+    jitted = jax.jit(lambda size, r: search.for_part(swept, None, 1.3, size, r).spiral_yaw)
+    np.testing.assert_allclose(jitted(jnp.full(2, 0.05), jnp.asarray(r)),
+                               search.for_part(swept, None, 1.3, np.full(2, 0.05), r).spiral_yaw,
+                               rtol=1e-15)  # fmt: skip
+
+
 def test_a_skills_record_reads_back_names_and_numbers_alike():
     config = search.SKILLS["spiral"].replace(part_scale="size")
     record = search.constants_record(config)
