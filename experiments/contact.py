@@ -34,8 +34,8 @@ from mjx_peg.evaluation import taxonomy
 from mjx_peg.policy.export import load_policy
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.params import PARAM_NAMES, ControllerParams, vector_from_controller
-from mjx_peg.skill.search import TEXT_CONSTANTS
 from mjx_peg.skill.sensor import SensorConfig
+from mjx_peg.skill.skill_cli import skill_constant
 from mjx_peg.world.constants import GRASP_MODELS, HOLE_DEPTH
 from mjx_peg.world.task import TaskConfig, sample_trials
 
@@ -95,10 +95,9 @@ def changed(vector: np.ndarray, text: str) -> np.ndarray:
 
 
 def search_changes(changes: str) -> dict[str, float | str]:
-    """{NAME: V} of 'NAME=V;...' (SkillConfig constants: numbers, or names for those that are
-    names)."""
-    pairs = (item.split("=") for item in changes.split(";") if item)
-    return {k.strip(): v.strip() if k.strip() in TEXT_CONSTANTS else float(v) for k, v in pairs}
+    """{NAME: V} of 'NAME=V;...' (SkillConfig constants, each read as --skill-constant reads
+    it: a number, or a name for those that are names)."""
+    return dict(skill_constant(item) for item in changes.split(";") if item)
 
 
 def search_config(skill, changes: str):

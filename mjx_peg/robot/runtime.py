@@ -144,16 +144,16 @@ class SkillRuntime:
         cfg = self.config
         tare = np.concatenate([state.force, state.torque])[None]
         y0 = start_state(self.goal_pos[0], self.goal_rot[0], state.tcp_pos, state.tcp_rot)[None]
-        hole = self.hole
-        search = for_part(cfg.search, self.params.search, cfg.movement.duration,
-                          np.array([hole.size]), np.array([hole.yaw_uncertainty]))  # fmt: skip
+        size = np.array([self.hole.size])
+        search = for_part(cfg.search, self.params.search, cfg.movement.duration, size,
+                          np.array([self.hole.yaw_uncertainty]))  # fmt: skip
         skill = make_skill(self.params, self.goal_pos, self.goal_rot, y0, cfg.dmp.tau, search)
         # The arm's reading is sampled, tared and delayed by its own path: the runtime adds
         # the software filter only, its pole for the command's period.
         ft = sensor.filter_params(cfg.sensor, cfg.timestep, np.zeros(1, np.uint32),
                                   self.period_steps)  # fmt: skip
         self.consts = period.make_consts(skill, ft, tare, self.hole_origin, self.hole_axis,
-                                         np.array([self.hole.size]), b(state.tcp_pos))  # fmt: skip
+                                         size, b(state.tcp_pos))  # fmt: skip
         self.trial = period.start(cfg, self.consts)
         self.t0 = self.last_t = state.t
         self.ends(state)

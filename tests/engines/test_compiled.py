@@ -156,11 +156,9 @@ def test_a_sweep_that_follows_the_declared_yaw_uncertainty_runs_alike_on_both_pa
     the +-6 deg ones (the amplitude exactly as set) bit for bit where they were."""
     from mjx_peg.world.task import TrialSpec
 
-    wide, paper = (sample_trials(TaskConfig(shapes=("square",), linear_error=lin,
-                                            angular_error=np.deg2rad(ang)), 7, 4)
-                   for lin, ang in ((0.01, 15.0), (0.004, 6.0)))  # fmt: skip
-    specs = TrialSpec(**{k: np.concatenate([v, paper.to_arrays()[k]])
-                         for k, v in wide.to_arrays().items()})  # fmt: skip
+    specs = TrialSpec.concat([sample_trials(TaskConfig(shapes=("square",), linear_error=lin,
+                                                       angular_error=np.deg2rad(ang)), 7, 4)
+                              for lin, ang in ((0.01, 15.0), (0.004, 6.0))])  # fmt: skip
     params = _params(8)
     config = TrialConfig(time_limit_s=3.0, search=SKILLS["spiral"].replace(yaw_scale="uncertainty"))
     numpy_pass = cpu_engine.run_on_cpu(specs, params, config, threads=1, compiled=False)
