@@ -74,7 +74,8 @@ def steps(out: str, commit: str, results: str = RESULTS) -> list[Step]:
         Step("skill_paper", (py, "experiments/ship_policy.py", "policies/paper", "paper",
                              "--skill", "spiral"), 5),
         Step("skill_family", (py, "experiments/ship_policy.py", "policies/family", "family",
-                              "--skill", "spiral"), 5),
+                              "--skill", "spiral", "--skill-constant", "yaw_scale=uncertainty"),
+             5),
     ]
     small = ("--grid", "paper-small")
 

@@ -287,7 +287,8 @@ def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypat
     """`ship_policy.record_skill` on a copy of the `paper` shipped until 2026-12 (trained with
     the `search` skill) as written before skills were recorded: by default it runs the skill it
     trained with (`search`, as it was); with --skill spiral its manifest and config.json are the
-    ones it was shipped with, byte for byte, and its policy.npz is untouched."""
+    ones it was shipped with, byte for byte, and its policy.npz is untouched; a constant given
+    (`--skill-constant`) is set on the skill it runs, not on the one it trained with."""
     import json
     import shutil
 
@@ -312,6 +313,12 @@ def test_ship_policy_records_the_skill_a_shipped_policy_runs(tmp_path, monkeypat
     assert load_policy(copy).skill == NamedSkill("spiral", SKILLS["spiral"])
     for name in ("manifest.json", "config.json", "policy.npz"):
         assert (copy / name).read_bytes() == (shipped / name).read_bytes(), name
+    trained = load_policy(copy).trained_skill
+    assert ship_policy.record_skill(copy, "spiral", [("yaw_scale", "uncertainty")]) == "spiral"
+    widened = SKILLS["spiral"].replace(yaw_scale="uncertainty")
+    assert load_policy(copy).skill == NamedSkill("spiral", widened)
+    assert load_policy(copy).trained_skill == trained  # what it trained with stays
+    assert (copy / "policy.npz").read_bytes() == (shipped / "policy.npz").read_bytes()
 
 
 def test_catalogue_lists_its_cases_and_classifies_a_few_on_a_fresh_clone(tmp_path):

@@ -59,11 +59,11 @@ def test_load_policy_by_name(shelf, tmp_path, monkeypatch):
 
 def test_the_shipped_policies_load_and_say_how_they_were_made():
     """The README's policies are shipped: the controllers `family`, `paper`, `quick` and
-    `transfer`, each
-    running by default the shipped skill (`spiral`, the skill it was trained with and its
-    published numbers used), its manifest's and config's constants those of the skill (a constant
-    added to the skill since they were written reads its default, off); its provenance names the
-    commit and command that trained it."""
+    `transfer`, each running by default the shipped skill (`spiral`, the skill it was trained
+    with and its published numbers used; `family` with its yaw sweep following the declared yaw
+    uncertainty), its manifest's and config's constants those of the skill (a constant added to
+    the skill since they were written reads its default, off); its provenance names the commit
+    and command that trained it."""
     names = shipped.shipped_names()
     assert names == ["family", "paper", "quick", "transfer"]
     for name in names:
@@ -74,7 +74,8 @@ def test_the_shipped_policies_load_and_say_how_they_were_made():
         assert vectors.shape == (2, outputs) and np.all(np.isfinite(vectors))
         folder = shipped.SHIPPED_DIR / name
         manifest = json.loads((folder / "manifest.json").read_text())
-        spiral = NamedSkill("spiral", SKILLS["spiral"])
+        runs = SKILLS["spiral"].replace(yaw_scale="uncertainty" if name == "family" else "absolute")
+        spiral = NamedSkill("spiral", runs)
         assert policy.skill == spiral
         recorded = named_skill(manifest["skill"]["name"], manifest["skill"]["constants"])
         assert recorded == spiral
@@ -82,6 +83,7 @@ def test_the_shipped_policies_load_and_say_how_they_were_made():
         config = json.loads((folder / "config.json").read_text())
         assert policy.trained_skill.name == config["skill"] == "spiral"
         assert constants_from_record(config["skill_constants"]) == policy.trained_skill.config
+        assert policy.trained_skill.config.yaw_scale == "absolute"
         provenance = json.loads((folder / "provenance.json").read_text())
         assert len(provenance["commit"]) == 40 and "train.py" in provenance["command"]
 
