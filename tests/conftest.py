@@ -8,7 +8,9 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 _ROOT = pathlib.Path(__file__).resolve().parent.parent
 _CACHE = _ROOT / ".jax_cache"
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
-os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "1")
+# Every program, the small ones too: each subprocess that trains (or runs the compiled pass)
+# would compile ~50 programs of ~0.1 s afresh (a warm `train.py` of the tiny run: 20 -> 14 s).
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 # The CPU engine's NumPy pass, the reference, unless a test names the compiled one: a compile per
 # trial config would cost the suite minutes (tests/engines/test_compiled.py checks the other).
 os.environ.setdefault("MJX_PEG_CONTROL_PASS", "numpy")

@@ -75,7 +75,11 @@ def test_a_rerun_whose_skill_constants_changed_is_refused(tiny_run, tiny_args, m
 
 
 @pytest.mark.slow
-def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_py):
+def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_py, capsys):
+    """`python train.py --seeds 3,4` trains each seed and writes their spread; the same command
+    again skips both (and a repeated seed is one line), run in this process."""
+    from mjx_peg.learn import cli
+
     args = ["--trials", "16", "--num-envs", "8", "--time-limit", "0.3", "--no-progress",
             "--processes", "1"]  # fmt: skip
     done = train_py(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
@@ -87,11 +91,11 @@ def test_a_set_of_seeds_trains_each_and_summarizes_their_spread(tmp_path, train_
     assert rows["trials"] == [8.0, 16.0] and rows["success_rate_seeds"] == [2.0, 2.0]
     assert (tmp_path / "set" / "seeds.png").stat().st_size > 10_000
     assert "2 seeds (3, 4)" in done.stdout
-    again = train_py(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args])
-    assert again.returncode == 0 and again.stderr.count("is finished: skipped") == 2
-    bad = train_py(["--seeds", "3,3", "--out", str(tmp_path / "x"), *args])
-    assert bad.returncode == 2
-    assert bad.stderr == "train.py: error: --seeds must name distinct seeds, got '3,3'\n"
+    assert cli.main(["--seeds", "3,4", "--out", str(tmp_path / "set"), *args]) == 0
+    assert capsys.readouterr().err.count("is finished: skipped") == 2
+    assert cli.main(["--seeds", "3,3", "--out", str(tmp_path / "x"), *args]) == 2
+    message = "train.py: error: --seeds must name distinct seeds, got '3,3'\n"
+    assert capsys.readouterr().err == message
 
 
 def test_init_from_takes_its_runs_observation_layout(paper_38):
