@@ -46,9 +46,9 @@ from mjx_peg.policy.export import load_policy
 from mjx_peg.policy.shipped import resolve_policy
 from mjx_peg.skill.search import (
     PART_SCALES,
-    constants_from_record,
     constants_record,
     named_skill,
+    record_as_today,
 )
 from mjx_peg.skill.skill_cli import skill_constant
 from mjx_peg.world.family import SUITE, Part
@@ -140,7 +140,7 @@ def check_folder(folder: Path, given: str, policy: str, args) -> None:
     if path.is_file():
         saved = json.loads(path.read_text())
         if isinstance(saved.get("skill"), dict):  # constants added since: their defaults, off
-            saved["skill"] = constants_record(constants_from_record(saved["skill"]))
+            saved["skill"] = record_as_today(saved["skill"])
         if saved != json.loads(json.dumps(record)):
             differ = sorted(k for k in record if saved.get(k) != json.loads(json.dumps(record[k])))
             raise SystemExit(

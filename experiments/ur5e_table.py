@@ -83,13 +83,13 @@ def cell_skill(policy: str, changes: tuple) -> dict:
 def ran_skill(out: Path) -> dict | None:
     """The skill record a cell's skill.json holds, constants added since read as their
     defaults; None where it has none."""
-    from mjx_peg.skill.search import constants_from_record, constants_record
+    from mjx_peg.skill.search import record_as_today
 
     path = out / "skill.json"
     if not path.is_file():
         return None
     record = json.loads(path.read_text())
-    return {**record, "constants": constants_record(constants_from_record(record["constants"]))}
+    return {**record, "constants": record_as_today(record["constants"])}
 
 
 def run_cell(policy: str, shape: str, size: int, linear: int, trials: int, out: Path,

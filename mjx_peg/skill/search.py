@@ -401,6 +401,12 @@ def constants_from_record(record) -> SkillConfig:
     return SkillConfig(**values)
 
 
+def record_as_today(record) -> dict:
+    """A record of constants (`constants_record`) as today's SkillConfig writes it: the fields
+    added since it was written at their defaults, off (what a rerun's record compares with)."""
+    return constants_record(constants_from_record(record))
+
+
 def named_skill(name: str, constants=None) -> NamedSkill:
     """The skill `name` with its constants: `constants` (a SkillConfig or its record) where
     given, else the named skill's: one of `SKILLS` as it is today, or one that files of earlier
@@ -628,6 +634,7 @@ __all__ = [
     "bounded_press",
     "centre_of_pressure",
     "constants_from_record",
+    "record_as_today",
     "constants_record",
     "for_part",
     "named_skill",

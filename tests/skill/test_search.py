@@ -664,3 +664,6 @@ def test_a_skills_record_reads_back_names_and_numbers_alike():
         search.constants_from_record({**record, "part_scale": 1.0})
     with pytest.raises(UsageError, match="spiral_pitch must be a number"):
         search.constants_from_record({**record, "spiral_pitch": "ten"})
+    # a record written before a constant existed reads as today's with that constant off
+    older = {k: v for k, v in record.items() if k != "yaw_scale"}
+    assert search.record_as_today(older) == record and record["yaw_scale"] == "absolute"
