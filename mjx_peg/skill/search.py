@@ -483,9 +483,7 @@ def searched_offset(config: SkillConfig, dy, wrench, rotation=None, spiral=None,
         turn = turn + xp.concat([lean[..., 1:], -lean[..., :1], xp.zeros_like(sigma)], axis=-1)
     if spiralling and config.spiral_yaw > 0:  # a triangle wave in [-psi_s, psi_s]
         phase = xp.remainder(tau / config.spiral_yaw_period + 0.25, 1.0)
-        psi = config.spiral_yaw
-        if values is not None and values.spiral_yaw is not None:  # the trial's (`for_part`)
-            psi = values.spiral_yaw[..., None]
+        psi = _value(config, values, "spiral_yaw")  # the trial's where `for_part` set it
         sweep = psi * sigma * (1.0 - 4.0 * xp.abs(phase[..., None] - 0.5))
         turn = turn + xp.concat([xp.zeros_like(lateral), sweep], axis=-1)
     return xp.concat([lateral, axial, turn], axis=-1)
@@ -634,10 +632,10 @@ __all__ = [
     "bounded_press",
     "centre_of_pressure",
     "constants_from_record",
-    "record_as_today",
     "constants_record",
     "for_part",
     "named_skill",
+    "record_as_today",
     "resting_gate",
     "search_values",
     "search_withdrawn",
