@@ -67,8 +67,9 @@ def main(argv=None) -> None:
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--time-limit", type=float, help="simulated s (default: 4 or twice --step)")
     args = p.parse_args(argv)
-    import jax
     from mujoco import mjx
+
+    from mjx_peg.engines.mjx import jit
 
     specs = agreement_specs(args.trials, seed=args.seed)
     limit = args.time_limit or max(4.0, 2 * args.step * TrialConfig().timestep)
@@ -78,7 +79,7 @@ def main(argv=None) -> None:
     rows = np.flatnonzero(failed)[: args.count]
     if rows.size == 0:
         raise SystemExit(f"contact_diff.py: no failed {args.shape} trial among {args.trials}")
-    forward = jax.jit(mjx.forward)
+    forward = jit(mjx.forward)
     for index, (m, d) in sorted(snapshots(specs, rows, args.step, config).items()):
         print(f"trial {index} ({args.shape}) at step {args.step}:")
         mujoco.mj_forward(m, d)

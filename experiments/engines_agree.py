@@ -105,6 +105,7 @@ def main(argv=None) -> None:
     if args.out:
         arrays = {f"mujoco_{k}": v for k, v in cpu.to_arrays().items()}
         arrays |= {f"mjx_{k}": v for k, v in acc.to_arrays().items()}
+        arrays["nudged_success"] = nudged.success  # C MuJoCo, every hole moved by --nudge-m
         np.savez(args.out, **arrays, **{f"spec_{k}": v for k, v in specs.to_arrays().items()})
         print(f"per-trial results: {args.out}")
 

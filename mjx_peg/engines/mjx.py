@@ -39,6 +39,19 @@ from mjx_peg.world.task import TrialSpec, board_pose, goal_pose, hole_frame
 
 _MODEL_FIELDS = ("board_pos3", "board_quat", "peg_pos", "peg_quat", "friction")
 
+# XLA's CPU fusion emitters (jax 0.9.2) turn MJX's scalar-heavy fusions into code ~40x slower
+# than its older loop emitters: one slot's `mjx.kinematics` 32 ms against 0.83 ms a call, the
+# agreement test's 8 squares 75 s against 0.7 s of stepping (2026-12-07; BENCHMARKS.md, "MJX on
+# the CPU"). Set per program, so that the CPU engine's compiled control pass keeps its code.
+CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+def jit(fun: Callable, **kwargs) -> Callable:
+    """`jax.jit` of an MJX function, with `CPU_COMPILER_OPTIONS` when JAX runs on the CPU."""
+    if jax.default_backend() == "cpu":
+        kwargs["compiler_options"] = {**CPU_COMPILER_OPTIONS, **kwargs.get("compiler_options", {})}
+    return jax.jit(fun, **kwargs)
+
 
 def step1(m: mjx.Model, d: mjx.Data) -> mjx.Data:
     """Position and velocity stages (C MuJoCo's mj_step1)."""
@@ -111,7 +124,7 @@ class _Program:
         self.control = control_config(config, jnp)
         self.qpos_adr = jnp.asarray(ids.qpos_adr)
         self.geoms = jnp.asarray(np.concatenate([ids.peg_geoms, ids.board_geoms]))
-        self.run = jax.jit(self._run)
+        self.run = jit(self._run)
 
     # --- one slot -----------------------------------------------------------------------------
     def _slot_model(self, fields):
@@ -155,9 +168,14 @@ class _Program:
         m = self._slot_model(fields)
         d = mjx.make_data(m)
         d = d.replace(qpos=d.qpos.at[self.qpos_adr].set(inp["q0"]))
-        d = mjx.forward(m, d)
-        d = d.replace(ctrl=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr))
-        d = mjx.forward(m, d)
+
+        def compensated(_, d):  # forward, then the torque that holds the arm at rest
+            d = mjx.forward(m, d)
+            return d.replace(ctrl=scene.bias_torque(d.qfrc_bias, d.qfrc_passive, self.ids.dof_adr))
+
+        # twice: the second forward runs under gravity compensation (its torque is the first's:
+        # the same pose at rest); one traced forward where two were compiled
+        d = jax.lax.fori_loop(0, 2, compensated, d)
         meas = self._measure(m, d)
         y0 = start_state(inp["goal_pos"], inp["goal_rot"], meas.tcp_pos, meas.tcp_rot)
         params = ControllerParams(inp["k_t"], inp["k_theta"], inp["compliance"])
@@ -203,14 +221,14 @@ class _Program:
         """Outcomes of all n trials of `inputs` (leading dim n), b slots recycled until done."""
         n = inputs["q0"].shape[0]
         b = self.batch
-        init = jax.vmap(self._init)
+        init = jax.jit(jax.vmap(self._init))  # traced once, for its shapes and in `reload`
         step = jax.vmap(self._step)
 
         def take(indices):
             safe = jnp.minimum(indices, n - 1)
             return jax.tree.map(lambda a: a[safe], inputs)
 
-        # Every slot starts ended and empty; the first chunk loads it. `init` is traced once.
+        # Every slot starts ended and empty; the first chunk loads it.
         shapes = jax.eval_shape(init, take(jnp.arange(b)))
         d, slot = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
         slot = dict(slot, ended=jnp.ones(b, bool))

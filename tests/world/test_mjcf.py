@@ -156,15 +156,16 @@ def test_scene_compiles_in_mujoco_and_mjx(shape, mm):
 def test_one_mjx_step_matches_mujoco():
     """One MJX step of the circle's scene (its peg a convex mesh prism) in free space is
     MuJoCo's; the square's scene runs MJX end to end in tests/engines/test_mjx.py."""
-    import jax
     from mujoco import mjx
+
+    from mjx_peg.engines.mjx import jit
 
     model = scene.load_model("circle", 0.05)
     data = place_tool_down(model, (0.45, 0.1, 0.3), 0.2)
     data.ctrl[:] = data.qfrc_bias[:6] + np.array([5.0, -5.0, 3.0, 1.0, -1.0, 0.5])
     mx = mjx.put_model(model)
     dx = mjx.put_data(model, data)
-    dx = jax.jit(mjx.step)(mx, dx)
+    dx = jit(mjx.step)(mx, dx)
     mujoco.mj_step(model, data)
     qpos, qvel = np.asarray(dx.qpos), np.asarray(dx.qvel)
     assert np.all(np.isfinite(qpos)) and np.all(np.isfinite(qvel))
