@@ -49,7 +49,8 @@ CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 def jit(fun: Callable, **kwargs) -> Callable:
     """`jax.jit` of an MJX function, with `CPU_COMPILER_OPTIONS` when JAX runs on the CPU."""
     if jax.default_backend() == "cpu":
-        kwargs["compiler_options"] = {**CPU_COMPILER_OPTIONS, **kwargs.get("compiler_options", {})}
+        given = kwargs.get("compiler_options") or {}
+        kwargs["compiler_options"] = {**CPU_COMPILER_OPTIONS, **given}
     return jax.jit(fun, **kwargs)
 
 

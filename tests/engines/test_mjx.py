@@ -23,8 +23,9 @@ def test_engines_agree(tmp_path, capsys):
     squares (+-3 mm / +-3 deg, seed 52, 4 s; `paper` as shipped 2026-12-07) all insert on both
     engines by 3.2 s, the same outcome on 40 / 40 (the nudge: 40 / 40), the median times 0.977
     against 0.978 s, the tips 0.08 mm apart (median). MJX on this CPU compiles one program per
-    scene (~45 s) and then steps the batch in ~5 s (`engines.mjx.CPU_COMPILER_OPTIONS`); alone,
-    empty compilation cache: 64 s. The circle's scene: one MJX step in tests/world/test_mjcf.py.
+    scene (~45 s) and then steps the batch in seconds (`engines.mjx.CPU_COMPILER_OPTIONS`);
+    alone, empty compilation cache: 61-64 s. The circle's scene: one MJX step in
+    tests/world/test_mjcf.py.
     At larger errors more trials part between the engines (`experiments/engines_agree.py
     --trials 48 ...` measures by how much: BENCHMARKS.md). The F/T pipeline itself is the same
     function on both (tests/engines/test_period.py, tests/skill/test_sensor.py); here both
