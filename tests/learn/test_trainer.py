@@ -237,10 +237,19 @@ def test_distributed_two_local_processes(tmp_path, tiny_args):
 
 
 def test_a_run_evaluates_its_mean_on_held_out_trials_and_writes_tensorboard(
-    tmp_path, tiny_config, tensorboard_scalars
+    tmp_path, tiny_config, tensorboard_scalars, monkeypatch
 ):
+    """Each iteration's held-out mean and TensorBoard scalars; the training curve, redrawn at
+    most every `CURVE_EVERY_S`, is drawn when the run finishes."""
+    from mjx_peg.learn import trainer
+
+    draws = []
+    monkeypatch.setattr(trainer, "CURVE_EVERY_S", 1e9)
+    real = trainer.plot_training_curve
+    monkeypatch.setattr(trainer, "plot_training_curve", lambda *a: draws.append(a) or real(*a))
     config = tiny_config.replace(trials=32, eval_every=1, eval_trials=4, time_limit_s=0.3)
     train(config, tmp_path / "run", progress=False, tensorboard=True)
+    assert len(draws) == 1  # of two iterations, after the last
     held = read_table(tmp_path / "run" / "eval.csv")
     assert held["iteration"] == [1.0, 2.0] and held["trials"] == [16.0, 32.0]
     assert all(0.0 <= s <= 1.0 for s in held["success_rate"])
