@@ -1,9 +1,13 @@
-"""Shared by the benchmark scripts: the device name and BENCHMARKS.md section updates."""
+"""Shared by the benchmark scripts: the device name, timed calls and BENCHMARKS.md section
+updates."""
 
 from __future__ import annotations
 
 import pathlib
 import platform
+import time
+
+import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
@@ -18,6 +22,22 @@ def cpu_name() -> str:
     except OSError:
         pass
     return platform.processor() or "unknown CPU"
+
+
+def time_calls(fn, seconds: float) -> float:
+    """Median seconds per call over 5 rounds of about `seconds` / 5 each."""
+    fn()
+    start = time.perf_counter()
+    fn()
+    once = max(time.perf_counter() - start, 1e-7)
+    reps = max(1, int(seconds / 5 / once))
+    rounds = []
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(reps):
+            fn()
+        rounds.append((time.perf_counter() - start) / reps)
+    return float(np.median(rounds))
 
 
 def write_section(path: pathlib.Path, heading: str, section: str) -> None:

@@ -19,7 +19,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _report import ROOT, cpu_name, write_section  # benchmarks/ is on sys.path when run
+from _report import ROOT, cpu_name, time_calls, write_section  # benchmarks/ on sys.path
 
 from mjx_peg.skill import dmp, osc, params
 
@@ -84,22 +84,6 @@ def make_inputs(batch: int, seed: int = 0) -> list[np.ndarray]:
         a @ np.swapaxes(a, -1, -2) / 6 + 0.5 * np.eye(6),
         rng.normal(size=(batch, 6)),
     ]
-
-
-def time_calls(fn, seconds: float) -> float:
-    """Median seconds per call over 5 rounds of about `seconds` / 5 each."""
-    fn()
-    start = time.perf_counter()
-    fn()
-    once = max(time.perf_counter() - start, 1e-7)
-    reps = max(1, int(seconds / 5 / once))
-    rounds = []
-    for _ in range(5):
-        start = time.perf_counter()
-        for _ in range(reps):
-            fn()
-        rounds.append((time.perf_counter() - start) / reps)
-    return float(np.median(rounds))
 
 
 def main() -> None:

@@ -5,12 +5,13 @@ program's compile, stepping rate and memory per slot by batch size.
 
 First `mjx.kinematics` of the square's scene, one slot, jitted with XLA's CPU fusion emitters
 (jax's default) and without them (`engines.mjx.CPU_COMPILER_OPTIONS`, what the engine runs),
-timed after its compile. Then for each batch size the engine's program (`engines.mjx._Program`)
-on that many squares (50 mm, +-3 mm / +-3 deg, seed 52, the shipped spiral with `paper`'s
-vectors) with as many slots: its trace and compile, one run (every slot stepped until the last
-trial ends, in chunks of 50 steps), batch steps/s, trial steps/s (the steps of live trials) and
-the program's temporary memory from XLA's `memory_analysis()`. Run with an empty
-`JAX_COMPILATION_CACHE_DIR` for compile times. Results: BENCHMARKS.md, "MJX on the CPU".
+timed after its compile (median of 5 rounds). Then for each batch size the engine's program
+(`engines.mjx._Program`) on that many squares (50 mm, +-3 mm / +-3 deg, seed 52, the shipped
+spiral with `paper`'s vectors) with as many slots: its trace and compile, one run (every slot
+stepped until the last trial ends, in chunks of 50 steps), batch steps/s, trial steps/s (the
+steps of live trials) and the program's temporary memory from XLA's `memory_analysis()`. Run
+with an empty `JAX_COMPILATION_CACHE_DIR` for compile times. Results: BENCHMARKS.md, "MJX on the
+CPU".
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _report import cpu_name, time_calls  # benchmarks/ is on sys.path when run
 from mujoco import mjx
 from mujoco.mjx._src import smooth
 
@@ -32,23 +34,16 @@ from mjx_peg.world import scene
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 
-def per_call_ms(fn, *args, calls: int = 10) -> float:
-    """ms per call of a compiled `fn` (after one call that compiles it)."""
-    jax.block_until_ready(fn(*args))
-    start = time.perf_counter()
-    for _ in range(calls):
-        out = fn(*args)
-    jax.block_until_ready(out)
-    return (time.perf_counter() - start) / calls * 1e3
-
-
 def kinematics_ms() -> dict[str, float]:
     """One slot's `mjx.kinematics` (square scene), ms per call, by emitter."""
     mx = mjx.put_model(scene.load_model("square", 0.05))
     d = mjx.make_data(mx)
     return {
-        "fusion emitters (jax's default)": per_call_ms(jax.jit(smooth.kinematics), mx, d),
-        "loop emitters (the engine's)": per_call_ms(engine.jit(smooth.kinematics), mx, d),
+        name: 1e3 * time_calls(lambda f=fn: jax.block_until_ready(f(mx, d)), 1.0)
+        for name, fn in (
+            ("fusion emitters (jax's default)", jax.jit(smooth.kinematics)),
+            ("loop emitters (the engine's)", engine.jit(smooth.kinematics)),
+        )
     }
 
 
@@ -81,7 +76,7 @@ def main() -> None:
     p.add_argument("--batches", default="8,32,128", help="slots (= trials) per program")
     p.add_argument("--time-limit", type=float, default=2.0, help="simulated s per trial")
     args = p.parse_args()
-    print(f"device: {jax.devices()[0].device_kind}")
+    print(f"device: {cpu_name()} (JAX {jax.default_backend()})")
     for name, ms in kinematics_ms().items():
         print(f"one slot's mjx.kinematics, {name}: {ms:.2f} ms a call")
     print("\n| slots | trace + compile | run | batch steps/s | trial steps/s | temporary memory "
