@@ -327,6 +327,9 @@ def train(
                 ],
             )
             finished = int(state.iteration) >= config.iterations
+            stopping = stop_after_iterations is not None and (
+                done_iterations + 1 >= stop_after_iterations
+            )
             if primary:
                 run.append(*row)
                 board.scalars("training", values, n)
@@ -335,9 +338,6 @@ def train(
                     held = held_out.evaluate(state)
                     run.append_eval([int(state.iteration), n] + [f"{v:.4f}" for v in held.values()])
                     board.scalars("eval", held, n)
-                stopping = stop_after_iterations is not None and (
-                    done_iterations + 1 >= stop_after_iterations
-                )
                 if finished or stopping or now - last_curve >= CURVE_EVERY_S:
                     _draw_curve(run, config)
                     last_curve = time.monotonic()
@@ -353,7 +353,7 @@ def train(
                     f"success {100 * succ.mean():.0f}%, return {trials['return'].mean():.0f}"
                 )
             done_iterations += 1
-            if stop_after_iterations is not None and done_iterations >= stop_after_iterations:
+            if stopping:
                 break
     except KeyboardInterrupt:  # keep every finished iteration: only the trials in flight are lost
         if primary and int(recorded.iteration) > saved:
