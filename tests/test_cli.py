@@ -575,7 +575,8 @@ def test_ctrl_c_stops_training_within_3_s_and_it_resumes_to_the_same_trials(tmp_
     import signal
     import time
 
-    argv = ["train.py", "--num-envs", "8", "--trials", "16", "--time-limit", "10",
+    # 4 s trials: an iteration of ~4 s here, the signal 1 s into its trials
+    argv = ["train.py", "--num-envs", "8", "--trials", "16", "--time-limit", "4",
             "--checkpoint-every", "3600", "--no-progress", "--processes", "0"]  # fmt: skip
     out = tmp_path / "run"
     env = dict(os.environ)  # the tests' compilation cache: each of the three runs compiles once
