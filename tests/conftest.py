@@ -1,4 +1,5 @@
-"""Shared test set-up: headless rendering, a persistent JAX compilation cache, the NumPy pass."""
+"""Shared test set-up: headless rendering, a persistent JAX compilation cache, Python's bytecode
+written, the NumPy pass."""
 
 import os
 import pathlib
@@ -12,7 +13,7 @@ os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
 # would compile ~50 programs of ~0.1 s afresh (a warm `train.py` of the tiny run: 20 -> 14 s).
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 # Python's bytecode written for the package, also where the environment turns it off: each of the
-# suite's few hundred Python processes would compile its ~20,000 lines again (~0.5 s a process).
+# suite's Python processes would compile its ~20,000 lines again (~0.5 s each).
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 # The CPU engine's NumPy pass, the reference, unless a test names the compiled one: a compile per
 # trial config would cost the suite minutes (tests/engines/test_compiled.py checks the other).
