@@ -38,16 +38,16 @@ def test_engines_agree(tmp_path, capsys):
     )
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
-    out = tmp_path / "agree.npz"
-    script.main(["--trials", "40", "--time-limit", "4", "--batch", "40", "--shapes", "square",
-                 "--linear-mm", "3", "--angular-deg", "3", "--seed", "52", "--skill", "spiral",
-                 "--policy", "paper", "--out", str(out)])  # fmt: skip
+    out, limit = tmp_path / "agree.npz", 4.0
+    script.main(["--trials", "40", "--time-limit", str(limit), "--batch", "40",
+                 "--shapes", "square", "--linear-mm", "3", "--angular-deg", "3", "--seed", "52",
+                 "--skill", "spiral", "--policy", "paper", "--out", str(out)])  # fmt: skip
     text = capsys.readouterr().out
     assert "same outcome on" in text and "mujoco vs mujoco with holes moved" in text
     with np.load(out) as saved:
         cpu_ok, acc_ok = saved["mujoco_success"], saved["mjx_success"]
         assert cpu_ok.shape == acc_ok.shape == saved["nudged_success"].shape == (40,)
-        ended = saved["mujoco_steps"] < TrialConfig(time_limit_s=4.0).max_steps  # on C MuJoCo
+        ended = saved["mujoco_steps"] < TrialConfig(time_limit_s=limit).max_steps  # on C MuJoCo
         assert ended.sum() >= 32
         same = (cpu_ok == acc_ok)[ended].mean()
         assert same >= 0.9
