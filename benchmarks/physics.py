@@ -7,8 +7,8 @@ Records the states of `--trials` trials of the spiral skill with the hand-tuned 
 (circle and square 50 mm at the paper's training errors, 20 s; a snapshot every `--every` steps,
 contacts included), then on one core:
 
-1. bare `mj_step` from each snapshot (10 steps, one MjData hot in the caches), by the number of
-   contacts: the physics' own cost and how contact raises it;
+1. bare `mj_step` from each snapshot (10 steps, one MjData hot in the caches), by part and by the
+   number of contacts: the physics' own cost and how contact raises it;
 2. the same steps under MuJoCo's stage timers (`mjcb_time`): which stage of `mj_step` takes it
    (the timers add their own cost; their shares are what counts);
 3. `mujoco.batch.Batch.step` over the same snapshots, `--sims` simulations per batch, one step per
@@ -35,6 +35,7 @@ from mjx_peg.engines.sims import STATE
 from mjx_peg.engines.trial import TrialConfig, as_controller_params
 from mjx_peg.skill.baseline import baseline_params
 from mjx_peg.skill.search import skill_config
+from mjx_peg.world.constants import SHAPES
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 CONTACT_BINS = ((0, 0), (1, 4), (5, 8), (9, 1000))
@@ -104,6 +105,11 @@ def main() -> None:
     rows, models = bare_steps(specs, snaps)
     contacts, micros = rows[:, 0], rows[:, 1]
     print(f"\nbare mj_step: {micros.mean():.1f} µs per step, {contacts.mean():.1f} contacts")
+    shape = np.asarray(specs.shape_id)[[index for index, _, _ in snaps]]
+    for k in np.unique(shape):
+        on = shape == k
+        print(f"  {SHAPES[k]}: {micros[on].mean():.1f} µs per step, "
+              f"{contacts[on].mean():.1f} contacts, {on.sum()} states")  # fmt: skip
     print("| contacts | states | µs per step | share of the time |\n|---|---|---|---|")
     for low, high in CONTACT_BINS:
         on = (contacts >= low) & (contacts <= high)
