@@ -193,13 +193,12 @@ def train(
     force: bool = False,
     checkpoint_every_s: float = 60.0,
     progress: bool = True,
-    stop_after_iterations: int | None = None,
     engine_options: dict | None = None,
     note: Callable[[str], None] | None = None,
     tensorboard: bool = False,
 ) -> TrainSummary:
-    """Train (or resume) into `out`. `stop_after_iterations` simulates a crash (for tests);
-    `tensorboard` writes every metric to RUN_DIR/tensorboard as well (`monitor.Board`).
+    """Train (or resume) into `out`. `tensorboard` writes every metric to RUN_DIR/tensorboard
+    as well (`monitor.Board`).
 
     Everything is checked before `out` is touched: what `out` holds (RunDir.plan), that it is
     not --init-from's run, and the --init-from checkpoint itself. With `force` an earlier run in
@@ -253,7 +252,6 @@ def train(
     wall0 = float(state.wall_s)
     start = time.monotonic()
     last_save = last_curve = start
-    done_iterations = 0
     total = config.iterations * config.num_envs
     bar = None
     if progress and primary:
@@ -327,9 +325,6 @@ def train(
                 ],
             )
             finished = int(state.iteration) >= config.iterations
-            stopping = stop_after_iterations is not None and (
-                done_iterations + 1 >= stop_after_iterations
-            )
             if primary:
                 run.append(*row)
                 board.scalars("training", values, n)
@@ -338,7 +333,7 @@ def train(
                     held = held_out.evaluate(state)
                     run.append_eval([int(state.iteration), n] + [f"{v:.4f}" for v in held.values()])
                     board.scalars("eval", held, n)
-                if finished or stopping or now - last_curve >= CURVE_EVERY_S:
+                if finished or now - last_curve >= CURVE_EVERY_S:
                     _draw_curve(run, config)
                     last_curve = time.monotonic()
             recorded = state  # its trials are in trials.csv: what an interrupt keeps
@@ -352,9 +347,6 @@ def train(
                 bar.set_postfix_str(
                     f"success {100 * succ.mean():.0f}%, return {trials['return'].mean():.0f}"
                 )
-            done_iterations += 1
-            if stopping:
-                break
     except KeyboardInterrupt:  # keep every finished iteration: only the trials in flight are lost
         if primary and int(recorded.iteration) > saved:
             _save(manager, recorded)
