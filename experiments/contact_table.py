@@ -18,6 +18,8 @@ import pathlib
 import numpy as np
 from scipy.stats import binomtest
 
+from mjx_peg.engines.trial import CHATTER_LIMIT_N, chatter_counted
+
 
 def load(path) -> dict[str, np.ndarray]:
     data = np.genfromtxt(path, delimiter=",", names=True)
@@ -39,7 +41,7 @@ def row(name: str, run: dict, reference: dict | None) -> str:
     ok = run["success"] > 0.5
     n = ok.size
     peak = np.percentile(run["peak_force"], [50, 99])
-    long = run["chatter"][run["time_s"] > 1.2]
+    long = run["chatter"][chatter_counted(run["time_s"])]
     insert = np.median(run["time_s"][ok]) if ok.any() else float("nan")
     cells = [
         name,
@@ -47,7 +49,7 @@ def row(name: str, run: dict, reference: dict | None) -> str:
         f"{int(run['protective_stop'].sum())}",
         f"{int(run['settled'].sum())}",
         f"{peak[0]:.0f} / {peak[1]:.0f} N",
-        f"{np.median(long):.2f} N, {100 * (long < 5).mean():.1f} %",
+        f"{np.median(long):.2f} N, {100 * (long < CHATTER_LIMIT_N).mean():.1f} %",
         f"{insert:.1f} s",
     ]
     if reference is not None:
@@ -63,7 +65,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     reference = load(args.reference) if args.reference else None
     header = ["run", "success", "protective stops", "settled", "peak median / p99",
-              "chatter median, < 5 N", "insert p50"]  # fmt: skip
+              f"chatter median, < {CHATTER_LIMIT_N:g} N", "insert p50"]  # fmt: skip
     if reference is not None:
         header.append(f"vs {args.reference.stem} (points)")
     print("| " + " | ".join(header) + " |")

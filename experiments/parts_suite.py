@@ -18,7 +18,8 @@ instead (`SkillConfig.part_scale`).
 One CSV per policy and part under OUT/POLICY/ (a row per trial: outcome, time, protective stop,
 chatter, failure class), so a killed run resumes part by part; then OUT/parts.csv and
 OUT/parts.md (per policy and part: success with its 95 % Wilson interval, the time to insert p50
-/ p90, protective stops, failures with chatter >= 5 N, the failure taxonomy of
+/ p90, protective stops, failures with chatter >= 5 N among the trials over 1.2 s
+(`engines.trial.chattering`), the failure taxonomy of
 `evaluation/taxonomy.py`) and OUT/parts.png. `--first N` runs only the first N of each part's
 `--trials` trials, the same trials as the whole suite's: a screen whose trials pair with it.
 """
@@ -39,7 +40,7 @@ from ur5e_table import wilson  # experiments/ur5e_table.py
 
 from mjx_peg import outdir
 from mjx_peg.engines import run_trials
-from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.engines.trial import CHATTER_LIMIT_N, CHATTER_MIN_TIME_S, TrialConfig, chattering
 from mjx_peg.evaluation import taxonomy
 from mjx_peg.evaluation.runner import load_controller
 from mjx_peg.policy.export import load_policy
@@ -55,7 +56,6 @@ from mjx_peg.world.family import SUITE, Part
 from mjx_peg.world.task import TaskConfig, sample_trials
 
 LINEAR_MM_AT_50, ANGULAR_DEG = 4.0, 6.0  # the paper's middle errors at its 50 mm parts
-CHATTER_N = 5.0  # a failure that chatters this much counts against the suite
 FIELDS = ("trial", "success", "time_s", "protective_stop", "chatter_n", "peak_force_n", "failure")
 
 
@@ -155,7 +155,8 @@ def check_folder(folder: Path, given: str, policy: str, args) -> None:
 
 def summary(policy: str, part: Part, rows: list[dict]) -> dict:
     ok = np.array([r["success"] == "1" for r in rows])
-    times = np.array([float(r["time_s"]) for r in rows])[ok]
+    duration = np.array([float(r["time_s"]) for r in rows])
+    times = duration[ok]
     chatter = np.array([float(r["chatter_n"]) for r in rows])
     lo, hi = wilson(int(ok.sum()), ok.size)
     p50, p90 = np.percentile(times, [50, 90]) if times.size else (math.nan, math.nan)
@@ -166,7 +167,7 @@ def summary(policy: str, part: Part, rows: list[dict]) -> dict:
         success_pct=100 * ok.mean(), wilson_low_pct=100 * lo, wilson_high_pct=100 * hi,
         time_p50_s=p50, time_p90_s=p90,
         protective_stops=sum(r["protective_stop"] == "1" for r in rows),
-        chatter_failures=int(np.sum(~ok & (chatter >= CHATTER_N))),
+        chatter_failures=int(np.sum(~ok & chattering(chatter, duration))),
         **{c.replace(" ", "_"): n for c, n in counts.items()},
     )  # fmt: skip
 
@@ -178,7 +179,8 @@ def markdown(table: list[dict], trials: str, seed: int, time_limit: float) -> st
         f"Held out of all training: {', '.join(p.name for p in SUITE if p.held_out)}.",
         "",
         "| part | policy | success | 95 % interval | time p50 / p90 | protective stops | "
-        f"failures chattering >= {CHATTER_N:g} N | failures by class |",
+        f"failures chattering >= {CHATTER_LIMIT_N:g} N (over {CHATTER_MIN_TIME_S:g} s) | "
+        "failures by class |",
         "|---|---|---:|---|---|---:|---:|---|",
     ]
     for r in table:

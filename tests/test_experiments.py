@@ -407,6 +407,49 @@ def test_parts_paired_counts_lost_and_gained_trials_per_part_and_over_all(tmp_pa
     assert done.returncode != 0 and done.stderr.strip().startswith("--trials must be FIRST:END")
 
 
+def test_the_parts_suite_counts_a_failure_chattering_past_the_approach_only():
+    """A touchdown's protective stop at 1.128 s (5.5 N in its window) is a protective stop, not a
+    failure that chatters; a failure on the rim at 60 s with 5.5 N is one."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import parts_suite
+
+    from mjx_peg.world.family import SUITE
+
+    rows = [dict(trial=str(k), success=ok, time_s=t, protective_stop=stop, chatter_n=c,
+                 peak_force_n="100", failure=cls)
+            for k, (ok, t, stop, c, cls) in enumerate((
+                ("0", "1.128", "1", "5.526", "protective stop"),
+                ("0", "60.000", "0", "5.499", "on the rim"),
+                ("0", "60.000", "0", "4.9", "on the rim"),
+                ("1", "3.0", "0", "8.0", "")))]  # fmt: skip
+    summary = parts_suite.summary("family", SUITE[0], rows)
+    assert summary["chatter_failures"] == 1 and summary["protective_stops"] == 1
+
+
+def test_arm_touchdown_replays_the_tables_trials_at_each_rate(tmp_path):
+    """A trial replayed is the UR5e table's trial: at the table's 125 Hz and 5 ms lag its peak
+    sensed force is the one the robot CLI recorded for it; a table's early stops are found."""
+    cell = tmp_path / "table" / "circle_50mm_6mm"
+    argv = ["--policy", "paper", "--shape", "circle", "--size", 50, "--linear-mm", 6,
+            "--angular-deg", 12, "--trials", 2, "--command-hz", 125, "--actuator-lag-ms", 5,
+            "--time-limit", 0.8, "--seed", 0, "--out", cell, "--no-progress"]  # fmt: skip
+    done = subprocess.run([sys.executable, "-m", "mjx_peg.robot", *map(str, argv)], cwd=ROOT,
+                          capture_output=True, text=True)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    peaks = [float(r["peak_force_n"]) for r in csv.DictReader(open(cell / "runs.csv"))]
+    text = run_script("experiments/arm_touchdown.py", "--cell", "circle_50mm_6mm", "--trial", 1,
+                      "--table-trials", 2, "--policy", "paper", "--seconds", 0.8)  # fmt: skip
+    row = [line for line in text.splitlines() if line.startswith("| circle_50mm_6mm | 1 |")]
+    assert len(row) == 1 and row[0].split(" | ")[3] == f"{peaks[1]:.0f} N", (row, peaks)
+    (cell / "runs.csv").write_text("trial,success,time_s,protective_stop\n0,1,3.0,0\n"
+                                   "1,0,0.9,1\n")  # fmt: skip
+    text = run_script("experiments/arm_touchdown.py", "--stops", tmp_path / "table", "--policy",
+                      "paper", "--seconds", 0.1)  # fmt: skip
+    assert "1 protective stops within 1.2 s" in text and "| circle_50mm_6mm | 1 | paper |" in text
+    done = run("experiments/arm_touchdown.py", "--cell", "circle_50mm_7mm", "--trial", 0)
+    assert done.returncode != 0 and "is none of the table's cells" in done.stderr
+
+
 def test_the_wilson_interval_holds_the_rate_at_every_count():
     """At n of n successes the upper end is the rate itself (rounding put it 1e-16 under it, and
     the parts suite's figure then had a negative error bar and failed)."""

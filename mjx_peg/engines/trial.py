@@ -211,17 +211,17 @@ class TrialResult:
             f"mean reward {float(self.reward.mean()):.0f}; {self.contact_summary()}"
         )
 
-    def contact_summary(self, min_time_s: float = 1.2, smooth: float = 5.0) -> str:
-        """Peak sensed force (median, p99) and chatter of the trials longer than `min_time_s`
-        (median, share under `smooth` N)."""
+    def contact_summary(self) -> str:
+        """Peak sensed force (median, p99) and the chatter of the trials whose chatter counts
+        (`chatter_counted`: median, share under CHATTER_LIMIT_N)."""
         peak = np.percentile(self.peak_force, [50, 99]) if len(self) else (np.nan, np.nan)
-        long = self.chatter[self.time_s > min_time_s]
+        long = self.chatter[chatter_counted(self.time_s)]
         median = float(np.median(long)) if long.size else float("nan")
-        share = 100.0 * float((long < smooth).mean()) if long.size else float("nan")
+        share = 100.0 * float((long < CHATTER_LIMIT_N).mean()) if long.size else float("nan")
         return (
             f"peak sensed force median {peak[0]:.0f} N, p99 {peak[1]:.0f} N; chatter median "
-            f"{median:.2f} N, {share:.1f} % under {smooth:g} N ({long.size} trials > "
-            f"{min_time_s:g} s)"
+            f"{median:.2f} N, {share:.1f} % under {CHATTER_LIMIT_N:g} N ({long.size} trials > "
+            f"{CHATTER_MIN_TIME_S:g} s)"
         )
 
 
@@ -280,6 +280,24 @@ def sensor_params(specs, config: TrialConfig) -> sensor.SensorParams:
         noise_scale=np.asarray(specs.sensor_noise_scale, dtype=np.float64),
         delay_offset=np.asarray(specs.sensor_delay_offset, dtype=np.int32),
     )
+
+
+# How the chatter metric (TrialResult.chatter) is read, for every table of it: a trial's chatter
+# counts only if the trial ran longer than CHATTER_MIN_TIME_S (one that ends sooner ends during
+# the approach, and its window holds the movement and the first impact, not a press on contact),
+# and a counted trial chatters if its chatter is CHATTER_LIMIT_N or more.
+CHATTER_MIN_TIME_S = 1.2
+CHATTER_LIMIT_N = 5.0
+
+
+def chatter_counted(time_s) -> np.ndarray:
+    """(...,) bool: the trials (their durations `time_s`, s) whose chatter counts."""
+    return np.asarray(time_s, dtype=float) > CHATTER_MIN_TIME_S
+
+
+def chattering(chatter, time_s) -> np.ndarray:
+    """(...,) bool: the trials whose chatter counts and is CHATTER_LIMIT_N or more."""
+    return chatter_counted(time_s) & (np.asarray(chatter, dtype=float) >= CHATTER_LIMIT_N)
 
 
 def chatter_of(ring, steps):

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import inputs
+from mjx_peg.engines.trial import CHATTER_LIMIT_N, chatter_counted
 from mjx_peg.errors import UsageError, message
 from mjx_peg.evaluation.stats import quarter_labels
 
@@ -141,8 +142,9 @@ class GridTable:
             contact = "chatter" in arrays and "protective_stop" in arrays
             rows["stops"].append(int(arrays["protective_stop"].sum()) if contact else math.nan)
             rows["peak"].append(float(np.median(arrays["peak_force"])) if contact else math.nan)
-            long = arrays["chatter"][arrays["time_s"] > 1.2] if contact else np.zeros(0)
-            rows["smooth"].append(100.0 * float((long < 5.0).mean()) if long.size else math.nan)
+            long = arrays["chatter"][chatter_counted(arrays["time_s"])] if contact else np.zeros(0)
+            share = 100.0 * float((long < CHATTER_LIMIT_N).mean()) if long.size else math.nan
+            rows["smooth"].append(share)
         return cls(
             linear_mm=lin,
             angular_deg=ang,

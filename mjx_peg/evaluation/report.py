@@ -16,7 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import outdir
-from mjx_peg.engines.trial import TrialConfig
+from mjx_peg.engines.trial import (
+    CHATTER_LIMIT_N,
+    CHATTER_MIN_TIME_S,
+    TrialConfig,
+    chatter_counted,
+)
 from mjx_peg.evaluation import eval_dir
 from mjx_peg.evaluation.config import EvalConfig, range_specs
 from mjx_peg.evaluation.grid_table import GridTable
@@ -91,15 +96,16 @@ def _contact_lines(arrays: dict[str, np.ndarray]) -> list[str]:
     if not {"peak_force", "chatter", "protective_stop", "time_s"} <= set(arrays):
         return []
     n = arrays["peak_force"].size
-    long = arrays["chatter"][arrays["time_s"] > 1.2]
+    long = arrays["chatter"][chatter_counted(arrays["time_s"])]
     p50, p99 = np.percentile(arrays["peak_force"], [50, 99])
     return [
         f"contact: peak sensed force median {p50:.0f} N, p99 {p99:.0f} N; protective stops "
         f"{int(arrays['protective_stop'].sum())} ({100.0 * arrays['protective_stop'].mean():.1f} "
-        f"%); chatter (mean |dF| of the axial force over a trial's last second) under 5 N in "
-        f"{100.0 * (long < 5.0).mean() if long.size else math.nan:.1f} % of the {long.size} "
-        f"trials longer than 1.2 s, median {np.median(long) if long.size else math.nan:.2f} N"
-        f" (of {n} trials)"
+        f"%); chatter (mean |dF| of the axial force over a trial's last second) under "
+        f"{CHATTER_LIMIT_N:g} N in "
+        f"{100.0 * (long < CHATTER_LIMIT_N).mean() if long.size else math.nan:.1f} % of the "
+        f"{long.size} trials longer than {CHATTER_MIN_TIME_S:g} s, median "
+        f"{np.median(long) if long.size else math.nan:.2f} N (of {n} trials)"
     ]
 
 

@@ -214,7 +214,12 @@ def _simulate(args, task, steps: int, policy, skill) -> int:
     """The trials of the simulated arm, into --out (held)."""
     import numpy as np
 
-    from mjx_peg.engines.trial import TrialConfig
+    from mjx_peg.engines.trial import (
+        CHATTER_LIMIT_N,
+        CHATTER_MIN_TIME_S,
+        TrialConfig,
+        chatter_counted,
+    )
     from mjx_peg.outdir import write_json
     from mjx_peg.robot import runtime, sim_arm
     from mjx_peg.world.parts import fit_text
@@ -280,10 +285,11 @@ def _simulate(args, task, steps: int, policy, skill) -> int:
     stops = sum(1 for r in rows if r[4])
     protective, settled = sum(r[5] for r in rows), sum(r[6] for r in rows)
     peak = np.array([float(r[7]) for r in rows])
-    chatter = np.array([float(r[8]) for r in rows])
+    long = np.array([float(r[8]) for r in rows])[chatter_counted(times)]
     contact = (
-        f"peak sensed force median {np.median(peak):.0f} N, chatter under 5 N in "
-        f"{100 * (chatter < 5).mean():.1f} %"
+        f"peak sensed force median {np.median(peak):.0f} N, chatter under {CHATTER_LIMIT_N:g} N "
+        f"in {100 * (long < CHATTER_LIMIT_N).mean() if long.size else math.nan:.1f} % of the "
+        f"{long.size} trials longer than {CHATTER_MIN_TIME_S:g} s"
         if rows
         else "-"
     )

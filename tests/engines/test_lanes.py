@@ -10,21 +10,6 @@ import pytest
 from mjx_peg.engines import lanes, period, run_trials
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.skill.baseline import baseline_params
-from mjx_peg.world.task import TaskConfig, sample_trials
-
-
-def _specs(shape, n, seed, **errors):
-    config = TaskConfig(shapes=(shape,), sizes=(0.05,), **errors)
-    return sample_trials(config, seed, n)
-
-
-def test_results_do_not_depend_on_threads_or_slots():
-    specs = _specs("circle", 6, seed=3, linear_error=0.002, angular_error=np.deg2rad(3.0))
-    config = TrialConfig(time_limit_s=3.0)
-    a = run_trials(specs, baseline_params(), "mujoco", config, threads=1, slots_per_thread=6)
-    b = run_trials(specs, baseline_params(), "mujoco", config, threads=2, slots_per_thread=1)
-    np.testing.assert_array_equal(a.success, b.success)
-    np.testing.assert_allclose(a.final_tip_pos, b.final_tip_pos, atol=1e-9)
 
 
 def test_results_do_not_depend_on_lanes_slots_or_batch_threads(mixed_specs):

@@ -37,3 +37,15 @@ def test_settle_update_ends_rest_and_repeating_oscillations_only():
         else:
             assert settled_at == pytest.approx(expected), name
     assert not is_settled(state._replace(matched=5), config.replace(end_settled=False))
+
+
+def test_chatter_counts_past_the_approach_and_chatters_from_its_limit():
+    """One reading of the chatter metric for every table: a trial's chatter counts only past 1.2
+    s (a protective stop at 1.128 s, as a touchdown's, holds the approach in its window), and a
+    counted trial chatters at 5 N or more."""
+    from mjx_peg.engines.trial import chatter_counted, chattering
+
+    time_s = np.array([1.128, 1.2, 1.21, 60.0, 60.0])
+    chatter = np.array([9.0, 9.0, 5.0, 4.99, 5.5])
+    assert chatter_counted(time_s).tolist() == [False, False, True, True, True]
+    assert chattering(chatter, time_s).tolist() == [False, False, True, False, True]

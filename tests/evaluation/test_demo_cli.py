@@ -8,6 +8,9 @@ import pytest
 from mjx_peg.evaluation import demo_cli, eval_cli
 from mjx_peg.evaluation import eval_dir as evaluation
 
+# on one xdist worker, which runs the module's evaluation once (spread over two, each ran it)
+pytestmark = pytest.mark.xdist_group("demo_cli")
+
 EVAL = [
     "--policy", "baseline", "--grid", "custom", "--linear-mm", "1,2", "--angular-deg", "3",
     "--trials", "6", "--time-limit", "4", "--shape", "circle,square", "--engine", "mujoco",

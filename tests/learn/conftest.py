@@ -25,9 +25,17 @@ def tiny_args() -> list[str]:
     return list(TINY_ARGS)
 
 
+def pytest_collection_modifyitems(items):
+    """The tests of the tiny run on one xdist worker (`--dist loadgroup`), which trains it once:
+    spread over two, each worker trained it (8-12 s of the suite's CPU)."""
+    for item in items:
+        if "tiny_run" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.xdist_group("tiny_run"))
+
+
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory):
-    """(run directory, summary) of the tiny run, trained once for the session."""
+    """(run directory, summary) of the tiny run, trained once for the session (per worker)."""
     out = tmp_path_factory.mktemp("tiny")
     summary = train(TINY, out, progress=False)
     return out, summary
