@@ -578,13 +578,18 @@ def parts_section(made_by) -> list[str]:
 
 
 def ur5e_section(made_by) -> list[str]:
-    """The paper's UR5e table in simulation (experiments/ur5e_table.py writes it)."""
-    folder = ROOT / RESULTS / "ur5e_table"
-    if not (folder / "table.md").exists():
-        return []
-    argv = made_by.get(f"{RESULTS}/ur5e_table", ["(no command recorded)"])
-    text = (folder / "table.md").read_text().rstrip("\n").split("\n")
-    return ["## The paper's UR5e table", "", *text, "", f"Command: {shell(argv)}"]
+    """The paper's UR5e table in simulation (experiments/ur5e_table.py writes it): with `paper`
+    (`transfer` for the triangles), then with `family` where it ran."""
+    lines = []
+    for name, title in (("ur5e_table", "## The paper's UR5e table"),
+                        ("ur5e_table_family", "### The same table with `family`")):  # fmt: skip
+        folder = ROOT / RESULTS / name
+        if not (folder / "table.md").exists():
+            continue
+        argv = made_by.get(f"{RESULTS}/{name}", ["(no command recorded)"])
+        text = (folder / "table.md").read_text().rstrip("\n").split("\n")
+        lines += [*([""] if lines else []), title, "", *text, "", f"Command: {shell(argv)}"]
+    return lines
 
 
 def vision_section(made_by) -> list[str]:

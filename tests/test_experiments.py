@@ -244,10 +244,10 @@ def test_regenerate_lists_every_step_and_runs_and_resumes_the_chosen(tmp_path):
     assert names.index("skill_family") < names.index("g_family_spiral_50mm_small_board")
     # the longest last, the family's compared with the paper's
     assert names[-2:] == ["g_paper_spiral_50mm_nominal_board", "g_family_spiral_50mm_nominal_board"]
-    assert len(names) == len(set(names)) == 48
+    assert len(names) == len(set(names)) == 49
     compared = names.index("g_transfer_spiral_triangle_small_board")
     assert names.index("g_paper_spiral_triangle_small_board") < compared
-    assert re.fullmatch(r"48 steps, ~\d+ min here", listed[-1])
+    assert re.fullmatch(r"49 steps, ~\d+ min here", listed[-1])
     only = run_script("experiments/regenerate.py", "--dry-run", "--only", "arm_*_125")
     assert [line.split(":")[0] for line in only.splitlines()[:-1]] == [
         "arm_circle_125", "arm_square_125"]  # fmt: skip
