@@ -7,9 +7,9 @@ mm, the triangle before and after transfer, 25 and 60 mm, the flange model, the 
 family policy), the 500- and 1,500-trial contact sets, the paper's skill on the 500, zero
 error, the sensor and friction variants, the simulated arm, the parts suite, the paper's UR5e
 table on the simulated arm (`paper` with `transfer` for the triangles, and `family`), vision to
-action, and the nominal 350-range grids last (`paper`,
-then `family`). `policies/paper` and `policies/family` are not retrained (`python train.py
---preset paper`, ~22 min here, or `--preset family`, ~31 min, is a decision of its own); each
+action, and the nominal 350-range grids last (`paper`, then `family`). `policies/paper` and
+`policies/family` are not retrained (`python train.py --preset paper`, ~22 min here, or
+`--preset family`, ~31 min, is a decision of its own); each
 manifest records again that it runs the spiral skill, with the spiral's constants as they are,
 so that `--policy paper` runs it without `--skill`, as the README writes its commands, and the
 range of its training parts' features (`ship_policy.record_skill`).
