@@ -18,7 +18,7 @@ import pathlib
 import numpy as np
 from scipy.stats import binomtest
 
-from mjx_peg.engines.trial import CHATTER_LIMIT_N, chatter_counted
+from mjx_peg.engines.trial import CHATTER_LIMIT_N, chatter_counted, smooth_pct
 
 
 def load(path) -> dict[str, np.ndarray]:
@@ -49,7 +49,7 @@ def row(name: str, run: dict, reference: dict | None) -> str:
         f"{int(run['protective_stop'].sum())}",
         f"{int(run['settled'].sum())}",
         f"{peak[0]:.0f} / {peak[1]:.0f} N",
-        f"{np.median(long):.2f} N, {100 * (long < CHATTER_LIMIT_N).mean():.1f} %",
+        f"{np.median(long):.2f} N, {smooth_pct(long):.1f} %",
         f"{insert:.1f} s",
     ]
     if reference is not None:

@@ -217,7 +217,7 @@ class TrialResult:
         peak = np.percentile(self.peak_force, [50, 99]) if len(self) else (np.nan, np.nan)
         long = self.chatter[chatter_counted(self.time_s)]
         median = float(np.median(long)) if long.size else float("nan")
-        share = 100.0 * float((long < CHATTER_LIMIT_N).mean()) if long.size else float("nan")
+        share = smooth_pct(long)
         return (
             f"peak sensed force median {peak[0]:.0f} N, p99 {peak[1]:.0f} N; chatter median "
             f"{median:.2f} N, {share:.1f} % under {CHATTER_LIMIT_N:g} N ({long.size} trials > "
@@ -293,6 +293,13 @@ CHATTER_LIMIT_N = 5.0
 def chatter_counted(time_s) -> np.ndarray:
     """(...,) bool: the trials (their durations `time_s`, s) whose chatter counts."""
     return np.asarray(time_s, dtype=float) > CHATTER_MIN_TIME_S
+
+
+def smooth_pct(counted) -> float:
+    """% of `counted` chatter values (N; those `chatter_counted` keeps) under CHATTER_LIMIT_N;
+    NaN where there are none."""
+    counted = np.asarray(counted, dtype=float)
+    return 100.0 * float((counted < CHATTER_LIMIT_N).mean()) if counted.size else math.nan
 
 
 def chattering(chatter, time_s) -> np.ndarray:

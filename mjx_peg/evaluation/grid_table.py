@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mjx_peg import inputs
-from mjx_peg.engines.trial import CHATTER_LIMIT_N, chatter_counted
+from mjx_peg.engines.trial import chatter_counted, smooth_pct
 from mjx_peg.errors import UsageError, message
 from mjx_peg.evaluation.stats import quarter_labels
 
@@ -143,8 +143,7 @@ class GridTable:
             rows["stops"].append(int(arrays["protective_stop"].sum()) if contact else math.nan)
             rows["peak"].append(float(np.median(arrays["peak_force"])) if contact else math.nan)
             long = arrays["chatter"][chatter_counted(arrays["time_s"])] if contact else np.zeros(0)
-            share = 100.0 * float((long < CHATTER_LIMIT_N).mean()) if long.size else math.nan
-            rows["smooth"].append(share)
+            rows["smooth"].append(smooth_pct(long))
         return cls(
             linear_mm=lin,
             angular_deg=ang,

@@ -21,6 +21,7 @@ from mjx_peg.engines.trial import (
     CHATTER_MIN_TIME_S,
     TrialConfig,
     chatter_counted,
+    smooth_pct,
 )
 from mjx_peg.evaluation import eval_dir
 from mjx_peg.evaluation.config import EvalConfig, range_specs
@@ -103,7 +104,7 @@ def _contact_lines(arrays: dict[str, np.ndarray]) -> list[str]:
         f"{int(arrays['protective_stop'].sum())} ({100.0 * arrays['protective_stop'].mean():.1f} "
         f"%); chatter (mean |dF| of the axial force over a trial's last second) under "
         f"{CHATTER_LIMIT_N:g} N in "
-        f"{100.0 * (long < CHATTER_LIMIT_N).mean() if long.size else math.nan:.1f} % of the "
+        f"{smooth_pct(long):.1f} % of the "
         f"{long.size} trials longer than {CHATTER_MIN_TIME_S:g} s, median "
         f"{np.median(long) if long.size else math.nan:.2f} N (of {n} trials)"
     ]

@@ -219,6 +219,7 @@ def _simulate(args, task, steps: int, policy, skill) -> int:
         CHATTER_MIN_TIME_S,
         TrialConfig,
         chatter_counted,
+        smooth_pct,
     )
     from mjx_peg.outdir import write_json
     from mjx_peg.robot import runtime, sim_arm
@@ -288,7 +289,7 @@ def _simulate(args, task, steps: int, policy, skill) -> int:
     long = np.array([float(r[8]) for r in rows])[chatter_counted(times)]
     contact = (
         f"peak sensed force median {np.median(peak):.0f} N, chatter under {CHATTER_LIMIT_N:g} N "
-        f"in {100 * (long < CHATTER_LIMIT_N).mean() if long.size else math.nan:.1f} % of the "
+        f"in {smooth_pct(long):.1f} % of the "
         f"{long.size} trials longer than {CHATTER_MIN_TIME_S:g} s"
         if rows
         else "-"
