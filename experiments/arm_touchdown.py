@@ -10,10 +10,10 @@ and at the engines' 500 Hz, each policy's peak sensed force over the trial's fir
 `--stops DIR` replays every trial of a UR5e table's folder (`experiments/ur5e_table.py --out
 DIR`: its CELL/runs.csv) that ended in a protective stop within `--within` seconds; `--cell` and
 `--trial` name trials instead. A cell's trials are the table's (`sample_trials` of its task with
-the table's seed plus the cell's index, as `ur5e_table.py` draws them), so a trial here is the
-table's trial. Each line: the trial, the policy, and for each of 125 Hz with the 5 ms lag, 125
-Hz without it and 500 Hz without it, the largest sensed tool force (the protective stop's
-reading, `SkillRuntime.peak_force`) over `--seconds`, and STOP where it passed the 150 N limit.
+the cell's seed, `ur5e_table.cell_seed`), so a trial here is the table's trial. Each line: the
+trial, the policy, and for each of 125 Hz with the 5 ms lag, 125 Hz without it and 500 Hz
+without it, the largest sensed tool force (the protective stop's reading,
+`SkillRuntime.peak_force`) over `--seconds`, and STOP where it passed the 150 N limit.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ur5e_table import ANGULAR_DEG, CELLS, COMMAND_HZ, LAG_MS, cell_name, read_runs
+from ur5e_table import ANGULAR_DEG, CELLS, COMMAND_HZ, LAG_MS, cell_name, cell_seed, read_runs
 
 from mjx_peg.engines.trial import TrialConfig
 from mjx_peg.policy.export import choose_skill, load_policy
@@ -57,7 +57,7 @@ def replay(policy, cell: str, trial: int, trials: int, seconds: float, seed: int
     k = CELL_NAMES.index(cell)
     shape, size, linear, _ = CELLS[k]
     task = TaskConfig.from_mm_deg((shape,), size, linear, ANGULAR_DEG)
-    specs = sample_trials(task, seed + k, trials)
+    specs = sample_trials(task, cell_seed(seed, k), trials)
     skill = choose_skill(None, policy, changes)
     config = TrialConfig(time_limit_s=60.0, search=skill.config)
     hole = runtime.HoleEstimate.of_trial(specs, trial)

@@ -64,6 +64,12 @@ def cell_name(shape: str, size: int, linear: int) -> str:
     return f"{shape}_{size}mm_{linear}mm"
 
 
+def cell_seed(seed: int, k: int) -> int:
+    """The robot CLI's --seed of the table's cell `k` (its index in CELLS) under the table's
+    --seed: each cell draws trials of its own."""
+    return seed + k
+
+
 def read_runs(path: Path) -> list[dict]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
@@ -146,8 +152,8 @@ def main(argv=None) -> int:
     def cell(k: int) -> list[dict]:
         shape, size, linear, _ = CELLS[k]
         out = args.out / cell_name(shape, size, linear)
-        return run_cell(cell_policies[k], shape, size, linear, args.trials, out, args.seed + k,
-                        changes)  # fmt: skip
+        return run_cell(cell_policies[k], shape, size, linear, args.trials, out,
+                        cell_seed(args.seed, k), changes)  # fmt: skip
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:  # each waits on its subprocess
         ran = list(pool.map(cell, range(len(CELLS))))
